@@ -1,0 +1,1 @@
+"""Blender-side face of PlateLight: properties, preferences and panels (imports bpy)."""

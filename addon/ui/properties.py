@@ -1,0 +1,96 @@
+"""Per-object, per-scene PlateLight settings (``object.platelight``, ``scene.platelight``).
+
+Names listed in design.md's scripting contract (``phantom``, ``probe_dir``) are stable API."""
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, IntProperty, PointerProperty, StringProperty)
+
+from .registration import register_classes, unregister_classes
+
+
+class PlateLightObjectSettings(bpy.types.PropertyGroup):
+    enabled: BoolProperty(
+        name="PlateLight Object",
+        description="Shade this object with a PlateLight probe baked from its centre",
+        default=False,
+        options=set(),
+    )
+    phantom: BoolProperty(
+        name="Phantom",
+        description="Stand-in for real geometry: seen in other objects' probes, holds out CG "
+        "behind it and receives shadows, but is not rendered as CG itself",
+        default=False,
+        options=set(),
+    )
+    probe_dir: StringProperty(
+        name="Probe Folder",
+        description="Folder holding this object's diffuse/glossy1/glossy2/specular EXR maps",
+        subtype="DIR_PATH",
+        default="",
+    )
+    probe_origin: PointerProperty(
+        name="Probe Origin",
+        description="Object whose location is the probe's centre (default: bounding-box centre)",
+        type=bpy.types.Object,
+    )
+    probe_status: StringProperty(
+        name="Probe Status",
+        description="State of the last bake of this object's probe",
+        default="not baked",
+        options=set(),
+    )
+    probe_hash: StringProperty(
+        name="Probe Hash",
+        description="Content hash of the inputs of the last bake (used to skip unchanged bakes)",
+        default="",
+        options={"HIDDEN"},
+    )
+
+
+class PlateLightSceneSettings(bpy.types.PropertyGroup):
+    probe_height: IntProperty(
+        name="Probe Height",
+        description="Height in pixels of each object's panoramic probe render (width is twice)",
+        default=64, min=8, soft_max=512, max=4096,
+    )
+    probe_samples: IntProperty(
+        name="Probe Samples",
+        description="Cycles samples per pixel for probe renders",
+        default=16, min=1, soft_max=256, max=65536,
+    )
+    maps_dir: StringProperty(
+        name="Maps Folder",
+        description="Where baked maps are written (relative to the .blend when it starts with //)",
+        default="//platelight_maps",
+        subtype="DIR_PATH",
+    )
+    world_probe: StringProperty(
+        name="World Probe",
+        description="Equirectangular EXR of the real place (empty: the world's environment texture)",
+        default="",
+        subtype="FILE_PATH",
+    )
+    sampling: EnumProperty(
+        name="Sampling",
+        description="How spherical harmonics are computed from the probe",
+        items=(
+            ("exact", "Exact", "Exact quadrature on the probe's texels (accurate and fast)"),
+            ("paper", "Paper", "The paper's jittered uniform sampling (Eq 8-9), for comparison"),
+        ),
+        default="exact",
+    )
+
+
+classes = (PlateLightObjectSettings, PlateLightSceneSettings)
+
+
+def register():
+    register_classes(classes)
+    bpy.types.Object.platelight = PointerProperty(type=PlateLightObjectSettings)
+    bpy.types.Scene.platelight = PointerProperty(type=PlateLightSceneSettings)
+
+
+def unregister():
+    for owner in (bpy.types.Object, bpy.types.Scene):
+        if hasattr(owner, "platelight"):
+            del owner.platelight
+    unregister_classes(classes)
