@@ -1,0 +1,1 @@
+"""Image-based lighting engine: equirect geometry, spherical harmonics, sampling, blurred maps."""
