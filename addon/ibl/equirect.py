@@ -87,9 +87,16 @@ def downsample_area(image: np.ndarray, height: int) -> np.ndarray:
     if h != factor * height:
         image = resample_bilinear(image, factor * height, factor * width)
         h, w = image.shape[:2]
-    weights = row_solid_angles(h, w)                       # (h,)
-    weighted = image.astype(np.float64) * weights[:, None, None]
-    block = weighted.reshape(height, factor, width, factor, -1).sum(axis=(1, 3))
+    # Texel weights are per row: sum each block's columns first (strided adds are much faster
+    # than a reduction over a short axis), then weight and add the rows.
+    weights = row_solid_angles(h, w)                                   # (h,)
+    col_sums = np.zeros((h, width, image.shape[2]))
+    for k in range(factor):
+        col_sums += image[:, k::factor]
+    col_sums *= weights[:, None, None]
+    block = np.zeros((height, width, image.shape[2]))
+    for k in range(factor):
+        block += col_sums[k::factor]
     block_weight = weights.reshape(height, factor).sum(axis=1) * factor
     return (block / block_weight[:, None, None]).astype(np.float32)
 

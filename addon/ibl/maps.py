@@ -1,0 +1,207 @@
+"""The four blurred maps of a probe (design.md): diffuse, glossy1, glossy2, specular.
+
+Each map holds the outgoing radiance of a white surface under the probe's light, so a constant
+environment of 1 gives 1 everywhere (white furnace).
+
+Two modes (``MapSettings.sampling``):
+- ``"exact"`` (default): one exact SH analysis of the full-resolution probe (FFT along rows +
+  Fejér quadrature, sh.project_exact) at the degree each lobe needs to be converged (lobe factors
+  below 1e-7), then synthesis onto each map's grid; specular is an area-correct downsample.
+- ``"paper"``: the paper's method — SH by the paper's stratified sampling (Eq 8–9): diffuse from
+  degree 2, glossy1 from degree 15; glossy2 by brute-force spatial convolution of the probe
+  (downsampled to twice the map's resolution); specular an area-correct downsample.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+
+import numpy as np
+
+from ..errors import PlateLightError
+from ..exr_io import write_exr
+from . import sh
+from .equirect import check_shape, downsample_area, texel_directions, texel_solid_angles
+
+MAP_NAMES = ("diffuse", "glossy1", "glossy2", "specular")
+DEFAULT_HEIGHTS = {"diffuse": 16, "glossy1": 32, "glossy2": 64, "specular": 128}
+MAX_PROBE_HEIGHT = 16384
+SH_JSON_LMAX = 15
+# A lobe's SH series is cut where its factors fall below this (relative to λ_0 = 1).
+LOBE_CUTOFF = 1e-7
+# The clamped cosine's factors decay only as l^-2.5; this degree keeps the diffuse map within
+# 0.1 % of brute force on sunny probes (docs/bench/maps.md) at no measurable cost.
+DIFFUSE_LMAX_EXACT = 48
+
+
+@dataclasses.dataclass
+class MapSettings:
+    sampling: str = "exact"            # "exact" or "paper"
+    samples: int = 4096                # paper mode: number of stratified samples (k² is used)
+    seed: int | None = 0               # paper mode: jitter seed (None: random)
+    glossy1_exponent: float = 8.0
+    glossy2_exponent: float = 64.0
+    heights: dict = dataclasses.field(default_factory=lambda: dict(DEFAULT_HEIGHTS))
+    paper_diffuse_lmax: int = 2
+    paper_glossy1_lmax: int = 15
+
+    def validate(self) -> None:
+        if self.sampling not in ("exact", "paper"):
+            raise PlateLightError(f"Unknown sampling mode {self.sampling!r}; use 'exact' or 'paper'.")
+        if self.sampling == "paper" and not 1 <= self.samples <= 50_000_000:
+            raise PlateLightError(f"--samples must be between 1 and 50,000,000, not {self.samples}.")
+        for name in ("glossy1_exponent", "glossy2_exponent"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and 0 <= value <= 100_000):
+                raise PlateLightError(f"{name} must be a number between 0 and 100000, not {value}.")
+        for name, height in self.heights.items():
+            if name not in MAP_NAMES:
+                raise PlateLightError(f"Unknown map {name!r}; maps are {', '.join(MAP_NAMES)}.")
+            if not 2 <= int(height) <= 8192:
+                raise PlateLightError(f"The {name} map height must be between 2 and 8192, not {height}.")
+
+
+@dataclasses.dataclass
+class MapsResult:
+    maps: dict                         # name -> float32 (h, 2h, 3)
+    sh: np.ndarray                     # SH of the probe radiance, ((SH_JSON_LMAX+1)², 3)
+    warnings: list                     # one sentence each (repaired pixels, clamped ringing)
+    timings: dict                      # stage -> seconds
+    stats: dict                        # e.g. negative texels clamped per map
+
+
+def prepare_environment(env: np.ndarray, name: str = "environment map") -> tuple[np.ndarray, list]:
+    """Validate a probe and repair what can be repaired, saying so: NaN/Inf pixels become 0 and
+    negative values are clamped to 0 (radiance cannot be negative). Returns (float32 RGB, warnings)."""
+    env = np.asarray(env)
+    check_shape(env, name)
+    if env.shape[0] > MAX_PROBE_HEIGHT:
+        raise PlateLightError(f"The {name} is {env.shape[1]}×{env.shape[0]}; the largest supported "
+                              f"probe is {2 * MAX_PROBE_HEIGHT}×{MAX_PROBE_HEIGHT}.")
+    env = np.asarray(env[..., :3], dtype=np.float32)
+    warnings = []
+    if np.isfinite(env.min()) and np.isfinite(env.max()):     # fast path: nothing to repair
+        bad = None
+    else:
+        bad = ~np.isfinite(env)
+    if bad is not None:
+        n = int(bad.any(axis=-1).sum())
+        env = np.where(bad, np.float32(0), env)
+        warnings.append(f"{n} pixel(s) of the {name} were NaN or infinite and were set to 0.")
+    if env.min() < 0:
+        n = int((env < 0).any(axis=-1).sum())
+        env = np.maximum(env, 0)
+        warnings.append(f"{n} pixel(s) of the {name} were negative and were clamped to 0.")
+    return env, warnings
+
+
+def lobe_lmax(exponent: float, limit: int) -> int:
+    """Lowest degree at which the Phong lobe's SH factors have fallen below LOBE_CUTOFF."""
+    factors = np.abs(sh.lobe_factors(exponent, limit))
+    small = np.nonzero(factors < LOBE_CUTOFF)[0]
+    return int(small[0]) if small.size else limit
+
+
+def _max_lmax(height: int) -> int:
+    return max(2, height - 1)
+
+
+def convolve_spatial(env: np.ndarray, exponent: float, height: int, source_height: int | None = None,
+                     chunk: int = 256) -> np.ndarray:
+    """Brute-force spatial convolution with the normalised Phong lobe (the paper's glossy2 route):
+    every output texel sums the (downsampled) source weighted by lobe × texel solid angle."""
+    if source_height is not None and source_height < env.shape[0]:
+        env = downsample_area(env, source_height)
+    hs, ws = env.shape[:2]
+    src_dirs = texel_directions(hs, ws).reshape(-1, 3)
+    src = (env.reshape(-1, 3).astype(np.float64) * texel_solid_angles(hs, ws).reshape(-1, 1))
+    out_dirs = texel_directions(height, 2 * height).reshape(-1, 3)
+    norm = (exponent + 1.0) / (2.0 * np.pi)
+    out = np.empty((out_dirs.shape[0], 3))
+    for start in range(0, out_dirs.shape[0], chunk):
+        cosines = np.maximum(out_dirs[start:start + chunk] @ src_dirs.T, 0.0)
+        out[start:start + chunk] = (norm * cosines ** exponent) @ src
+    return out.reshape(height, 2 * height, 3)
+
+
+def compute_maps(env: np.ndarray, settings: MapSettings | None = None,
+                 which=MAP_NAMES) -> MapsResult:
+    """Compute the requested maps (and the probe's SH up to degree 15) from a lat-long probe."""
+    settings = settings or MapSettings()
+    settings.validate()
+    which = tuple(which)
+    unknown = [name for name in which if name not in MAP_NAMES]
+    if unknown:
+        raise PlateLightError(f"Unknown map(s) {unknown}; maps are {', '.join(MAP_NAMES)}.")
+    timings = {}
+    t0 = time.perf_counter()
+    env, warnings = prepare_environment(env)
+    heights = {**DEFAULT_HEIGHTS, **settings.heights}
+    timings["prepare"] = time.perf_counter() - t0
+    maps, stats = {}, {}
+    limit = _max_lmax(env.shape[0])
+
+    t0 = time.perf_counter()
+    if settings.sampling == "exact":
+        degrees = {"diffuse": min(DIFFUSE_LMAX_EXACT, limit),
+                   "glossy1": lobe_lmax(settings.glossy1_exponent, limit),
+                   "glossy2": lobe_lmax(settings.glossy2_exponent, limit)}
+        need = max([SH_JSON_LMAX] + [degrees[n] for n in which if n in degrees])
+        coeffs = sh.project_exact(env, min(need, limit))
+    else:
+        degrees = {"diffuse": settings.paper_diffuse_lmax, "glossy1": settings.paper_glossy1_lmax}
+        need = max(SH_JSON_LMAX, settings.paper_glossy1_lmax, settings.paper_diffuse_lmax)
+        coeffs = sh.project_paper(env, need, settings.samples, settings.seed)
+    timings["sh"] = time.perf_counter() - t0
+    exponents = {"diffuse": 1.0, "glossy1": settings.glossy1_exponent,
+                 "glossy2": settings.glossy2_exponent}
+
+    for name in which:
+        t0 = time.perf_counter()
+        height = int(heights[name])
+        if name == "specular":
+            image = downsample_area(env, height)
+        elif name == "glossy2" and settings.sampling == "paper":
+            image = convolve_spatial(env, exponents[name], height, source_height=2 * height)
+        else:
+            lmax = min(degrees[name], coeffs_lmax(coeffs))
+            factors = sh.lobe_factors(exponents[name], lmax)
+            image = sh.synthesize(coeffs[: (lmax + 1) ** 2], height, factors)
+        negative = image < 0
+        if negative.any():
+            stats[f"{name}_negative_texels"] = int(negative.any(axis=-1).sum())
+            stats[f"{name}_most_negative"] = float(image.min())
+            image = np.maximum(image, 0)
+        maps[name] = np.ascontiguousarray(image, dtype=np.float32)
+        timings[name] = time.perf_counter() - t0
+    if any(k.endswith("_negative_texels") for k in stats):
+        parts = [f"{k[:-16]}: {v}" for k, v in stats.items() if k.endswith("_negative_texels")]
+        warnings.append("SH ringing made some texels negative; they were clamped to 0 ("
+                        + ", ".join(parts) + ").")
+    n_sh = num = (SH_JSON_LMAX + 1) ** 2
+    sh_out = np.zeros((num, 3))
+    sh_out[: min(n_sh, coeffs.shape[0])] = coeffs[:n_sh]
+    return MapsResult(maps=maps, sh=sh_out, warnings=warnings, timings=timings, stats=stats)
+
+
+def coeffs_lmax(coeffs: np.ndarray) -> int:
+    return int(round(np.sqrt(coeffs.shape[0]))) - 1
+
+
+def map_filename(name: str, frame: int | None = None) -> str:
+    """``diffuse.exr`` for a single-frame bake, ``diffuse_0001.exr`` for frame 1 of a sequence."""
+    if name not in MAP_NAMES:
+        raise ValueError(f"unknown map {name!r}")
+    return f"{name}.exr" if frame is None else f"{name}_{int(frame):04d}.exr"
+
+
+def write_maps(folder: str | os.PathLike, maps: dict, frame: int | None = None) -> dict:
+    """Write each map as float32 EXR (atomically replacing older files). Returns name -> path."""
+    folder = os.fspath(folder)
+    paths = {}
+    for name, image in maps.items():
+        path = os.path.join(folder, map_filename(name, frame))
+        write_exr(path, image)
+        paths[name] = path
+    return paths
