@@ -152,9 +152,12 @@ def paper_directions(samples: int, seed: int | None = 0) -> np.ndarray:
 def project_paper(image: np.ndarray, lmax: int, samples: int = 4096, seed: int | None = 0) -> np.ndarray:
     """The paper's Eq 8: Σ L(ω) y_lm(ω) 4π/n over stratified directions (bilinear lookups)."""
     dirs = paper_directions(samples, seed)
-    u, v = dir_to_uv(dirs)
-    radiance = sample_bilinear(image, u, v)                            # (n, C)
-    return sh_basis(lmax, dirs).T @ radiance * (4.0 * np.pi / dirs.shape[0])
+    coeffs = np.zeros((num_coefficients(lmax), image.shape[2]))
+    for start in range(0, dirs.shape[0], 32768):          # bounded memory for large n
+        chunk = dirs[start:start + 32768]
+        u, v = dir_to_uv(chunk)
+        coeffs += sh_basis(lmax, chunk).T @ sample_bilinear(image, u, v)
+    return coeffs * (4.0 * np.pi / dirs.shape[0])
 
 
 def lobe_factors(exponent: float, lmax: int) -> np.ndarray:
