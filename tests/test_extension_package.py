@@ -1,0 +1,27 @@
+"""The checkout is a valid Blender extension (Blender's own validator) and imports without bpy."""
+import subprocess
+import sys
+
+import support
+
+
+def test_blender_extension_validator_accepts_the_checkout():
+    proc = subprocess.run([sys.executable, str(support.REPO / "tools" / "extension.py"), "validate"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "Success" in proc.stdout
+
+
+def test_root_package_imports_without_bpy():
+    code = ("import sys; import platelight, platelight.addon.ibl.maps, platelight.addon.cli; "
+            "assert 'bpy' not in sys.modules, 'bpy imported'")
+    proc = subprocess.run([sys.executable, "-c", code], env=support.cli_env(),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_cli_help_lists_subcommands():
+    proc = support.run_cli("--help")
+    assert proc.returncode == 0
+    for name in ("maps", "demo"):
+        assert name in proc.stdout
