@@ -164,3 +164,9 @@ def test_demo_maps_stage(tmp_path):
     assert (tmp_path / "demo" / "maps_contact_sheet.png").stat().st_size > 10_000
     for name in ("diffuse", "glossy1", "glossy2", "specular"):
         assert read_exr(tmp_path / "demo" / "maps" / f"{name}.exr").shape[1] > 0
+
+
+def test_output_folder_on_a_read_only_filesystem(probe):
+    """Works as root too: nobody can create folders in /proc."""
+    assert_one_clear_error(support.run_cli("maps", probe, "--out", "/proc/platelight-out"),
+                           "Cannot create output folder")

@@ -70,7 +70,8 @@ def main(out_dir: pathlib.Path) -> None:
             maps.compute_maps(env, settings)                       # warm caches (Legendre tables)
             seconds, result = best_time(lambda: maps.compute_maps(env, settings), 5 if mode == "exact" else 2)
             errors = {m: ref.relative_rms(result.maps[m], refs[m]) for m in maps.MAP_NAMES}
-            rows.append((pname, env.shape, mode, seconds, errors, ref_total, float(env.max())))
+            negative = sum(v for k, v in result.stats.items() if k.endswith("_negative_texels"))
+            rows.append((pname, env.shape, mode, seconds, errors, ref_total, float(env.max()), negative))
             print(f"{pname:10s} {mode:5s} {seconds * 1e3:8.1f} ms  " +
                   "  ".join(f"{m} {e * 100:.3f}%" for m, e in errors.items()), flush=True)
         if pname in ("grace", "sunrise", "city"):
@@ -103,13 +104,13 @@ def write_report(out_dir, rows, curves):
         "Error = solid-angle weighted relative RMS against the brute-force reference of",
         "`tests/reference.py` (direct sum over every source texel; specular: exact box filter).",
         "",
-        "| probe | peak | mode | time (ms) | diffuse | glossy1 | glossy2 | specular | brute force (s) | speed-up |",
-        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|",
+        "| probe | peak | mode | time (ms) | diffuse | glossy1 | glossy2 | specular | negative texels clamped | brute force (s) | speed-up |",
+        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
-    for pname, shape, mode, seconds, errors, ref_total, peak in rows:
+    for pname, shape, mode, seconds, errors, ref_total, peak, negative in rows:
         lines.append(f"| {pname} | {peak:.3g} | {mode} | {seconds * 1e3:.1f} | " +
                      " | ".join(f"{errors[m] * 100:.3f} %" for m in maps.MAP_NAMES) +
-                     f" | {ref_total:.1f} | {ref_total / seconds:.0f}× |")
+                     f" | {negative} | {ref_total:.1f} | {ref_total / seconds:.0f}× |")
     exact = [r for r in rows if r[2] == "exact"]
     lines += ["", f"Exact mode: worst time {max(r[3] for r in exact) * 1e3:.1f} ms, worst error "
               f"{max(max(r[4].values()) for r in exact) * 100:.3f} % over {len(exact)} probes.", "",
