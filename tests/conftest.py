@@ -2,7 +2,9 @@
 throw-away user profile, and the extension is enabled from this checkout (design.md)."""
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import pathlib
 import sys
 import tempfile
@@ -26,6 +28,7 @@ def _import_bpy_with_extension():
     if "bpy" not in sys.modules:
         _profile = tempfile.mkdtemp(prefix="platelight-profile-")
         os.environ["BLENDER_USER_RESOURCES"] = _profile
+        atexit.register(shutil.rmtree, _profile, ignore_errors=True)
     import bpy
 
     if EXT_MODULE not in bpy.context.preferences.addons:
