@@ -1,0 +1,145 @@
+"""Compositor group "PlateLight Differential": differential rendering onto the plate (Debevec 1998,
+paper section 4), with the CG's lens and tone presets.
+
+    CG'      = glare(tone(exposure(CG)))                       (CG only: the plate passes untouched)
+    ratio    = min(With / max(Without, ε), Shadow Clamp)        (ratio form; catcher pass: Without = 1)
+    local    = Ratio Form ? Plate · ratio : Plate + With − Without
+    Image    = CG' + (1 − α_CG) · local                         (premultiplied "over")
+
+Where no CG, shadow or reflection touches a pixel, α = 0 and With = Without, so Image = Plate
+exactly (every step is then a multiplication by 1 or an addition of 0 in float32).
+
+Blender 5.0: compositor groups are node trees of type CompositorNodeTree; Mix and Math are the
+shader-style nodes; node options such as the Glare type are menu input sockets (design.md).
+The builder is idempotent: re-running it rebuilds the same group in place (users keep it).
+"""
+import bpy
+
+GROUP_NAME = "PlateLight Differential"
+RATIO_EPSILON = 1e-6
+
+# name, socket type, default, (min, max), description
+INPUTS = (
+    ("Plate", "NodeSocketColor", (0.0, 0.0, 0.0, 1.0), None, "The footage frame"),
+    ("CG", "NodeSocketColor", (0.0, 0.0, 0.0, 0.0), None, "CG render, premultiplied alpha"),
+    ("With", "NodeSocketColor", (1.0, 1.0, 1.0, 1.0), None,
+     "Local scene rendered with the CG objects, or Cycles' Shadow Catcher pass (then Without = 1)"),
+    ("Without", "NodeSocketColor", (1.0, 1.0, 1.0, 1.0), None, "Local scene rendered without the CG objects"),
+    ("Ratio Form", "NodeSocketFloat", 1.0, (0.0, 1.0),
+     "1: Plate × With/Without (shadows scale the plate); 0: Plate + With − Without (additive)"),
+    ("Shadow Clamp", "NodeSocketFloat", 4.0, (1.0, 1000.0),
+     "Largest brightening the ratio may apply (keeps noise in dark Without pixels from exploding)"),
+    ("CG Exposure", "NodeSocketFloat", 0.0, (-20.0, 20.0), "Exposure of the CG in stops, to match the plate"),
+    ("Tone Map", "NodeSocketFloat", 0.0, (0.0, 1.0),
+     "Blend of Reinhard's x/(1+x) on the CG (use when the plate is display-referred footage)"),
+    ("Glare", "NodeSocketFloat", 0.0, (0.0, 1.0), "Bloom on the CG's HDR highlights"),
+    ("Glare Threshold", "NodeSocketFloat", 1.0, (0.0, 1000.0), "Brightness above which the CG blooms"),
+)
+OUTPUTS = (
+    ("Image", "NodeSocketColor", "The composite"),
+    ("CG", "NodeSocketColor", "The CG after exposure, tone and glare"),
+    ("Shadows", "NodeSocketColor", "What the CG does to the real scene: the ratio (or the difference + 1)"),
+)
+
+
+def _mix(nodes, links, blend, a, b, factor=1.0, location=(0, 0), clamp=False):
+    node = nodes.new("ShaderNodeMix")
+    node.data_type = "RGBA"
+    node.blend_type = blend
+    node.clamp_result = clamp
+    node.location = location
+    node.inputs[0].default_value = factor
+    for socket, value in ((node.inputs[6], a), (node.inputs[7], b)):
+        if isinstance(value, bpy.types.NodeSocket):
+            links.new(value, socket)
+        elif isinstance(value, (int, float)):
+            socket.default_value = (value, value, value, 1.0)
+        else:
+            socket.default_value = value
+    return node
+
+
+def _link_factor(links, node, socket):
+    links.new(socket, node.inputs[0])
+
+
+def _rebuild_interface(tree):
+    tree.interface.clear()
+    for name, socket_type, default, bounds, description in INPUTS:
+        socket = tree.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
+        socket.description = description
+        socket.default_value = default
+        if bounds is not None:
+            socket.min_value, socket.max_value = bounds
+    for name, socket_type, description in OUTPUTS:
+        socket = tree.interface.new_socket(name, in_out="OUTPUT", socket_type=socket_type)
+        socket.description = description
+
+
+def build_differential_group():
+    """Create or rebuild the "PlateLight Differential" compositor group; returns it."""
+    tree = bpy.data.node_groups.get(GROUP_NAME)
+    if tree is None or tree.bl_idname != "CompositorNodeTree":
+        tree = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
+    tree.nodes.clear()
+    _rebuild_interface(tree)
+    nodes, links = tree.nodes, tree.links
+    group_in = nodes.new("NodeGroupInput")
+    group_in.location = (-1200, 0)
+    group_out = nodes.new("NodeGroupOutput")
+    group_out.location = (900, 0)
+    inp = group_in.outputs
+
+    # --- the CG's lens and tone (never applied to the plate) ---
+    exposure = nodes.new("CompositorNodeExposure")
+    exposure.location = (-900, 300)
+    links.new(inp["CG"], exposure.inputs["Image"])
+    links.new(inp["CG Exposure"], exposure.inputs["Exposure"])
+    # Reinhard x/(1+x) per channel; alpha is carried by the original CG below
+    one_plus = _mix(nodes, links, "ADD", exposure.outputs["Image"], 1.0, location=(-700, 400))
+    reinhard = _mix(nodes, links, "DIVIDE", exposure.outputs["Image"], one_plus.outputs[2], location=(-500, 400))
+    toned = _mix(nodes, links, "MIX", exposure.outputs["Image"], reinhard.outputs[2], location=(-300, 300))
+    _link_factor(links, toned, inp["Tone Map"])
+    glare = nodes.new("CompositorNodeGlare")
+    glare.location = (-100, 450)
+    glare.inputs["Type"].default_value = "Bloom"
+    glare.inputs["Quality"].default_value = "Medium"
+    links.new(toned.outputs[2], glare.inputs["Image"])
+    links.new(inp["Glare Threshold"], glare.inputs["Threshold"])
+    glared = _mix(nodes, links, "MIX", toned.outputs[2], glare.outputs["Image"], location=(100, 300))
+    _link_factor(links, glared, inp["Glare"])
+    # colour mixes keep A's alpha: put the CG's own alpha back explicitly
+    cg_alpha = nodes.new("CompositorNodeSeparateColor")
+    cg_alpha.location = (-900, 100)
+    links.new(inp["CG"], cg_alpha.inputs["Image"])
+    cg_out = nodes.new("CompositorNodeSetAlpha")
+    cg_out.location = (300, 300)
+    cg_out.inputs["Type"].default_value = "Replace Alpha"
+    links.new(glared.outputs[2], cg_out.inputs["Image"])
+    links.new(cg_alpha.outputs["Alpha"], cg_out.inputs["Alpha"])
+
+    # --- the CG's effect on the real scene ---
+    safe_without = _mix(nodes, links, "LIGHTEN", inp["Without"], RATIO_EPSILON, location=(-700, -200))
+    ratio = _mix(nodes, links, "DIVIDE", inp["With"], safe_without.outputs[2], location=(-500, -200))
+    clamp_colour = nodes.new("CompositorNodeCombineColor")
+    clamp_colour.location = (-700, -400)
+    for channel in ("Red", "Green", "Blue"):
+        links.new(inp["Shadow Clamp"], clamp_colour.inputs[channel])
+    clamped = _mix(nodes, links, "DARKEN", ratio.outputs[2], clamp_colour.outputs["Image"], location=(-300, -200))
+    scaled = _mix(nodes, links, "MULTIPLY", inp["Plate"], clamped.outputs[2], location=(-100, -200))
+    difference = _mix(nodes, links, "SUBTRACT", inp["With"], inp["Without"], location=(-500, -500))
+    added = _mix(nodes, links, "ADD", inp["Plate"], difference.outputs[2], location=(-100, -500))
+    local = _mix(nodes, links, "MIX", added.outputs[2], scaled.outputs[2], location=(100, -300))
+    _link_factor(links, local, inp["Ratio Form"])
+    shadows_additive = _mix(nodes, links, "ADD", difference.outputs[2], 1.0, location=(-300, -600))
+    shadows = _mix(nodes, links, "MIX", shadows_additive.outputs[2], clamped.outputs[2], location=(100, -600))
+    _link_factor(links, shadows, inp["Ratio Form"])
+
+    over = nodes.new("CompositorNodeAlphaOver")
+    over.location = (500, 0)
+    links.new(local.outputs[2], over.inputs["Background"])
+    links.new(cg_out.outputs["Image"], over.inputs["Foreground"])
+    links.new(over.outputs["Image"], group_out.inputs["Image"])
+    links.new(cg_out.outputs["Image"], group_out.inputs["CG"])
+    links.new(shadows.outputs[2], group_out.inputs["Shadows"])
+    return tree

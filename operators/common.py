@@ -1,0 +1,17 @@
+"""Small helpers shared by PlateLight's operators (bpy)."""
+import bpy
+
+PLATE_IMAGE_NAME = "PlateLight Plate"
+
+
+def find_plate_image(scene):
+    """The plate: the image set up by platelight.setup_plate, else the camera's background image."""
+    image = bpy.data.images.get(PLATE_IMAGE_NAME)
+    if image is not None:
+        return image
+    camera = scene.camera
+    if camera is not None and camera.type == "CAMERA":
+        for background in camera.data.background_images:
+            if background.source == "IMAGE" and background.image is not None:
+                return background.image
+    return None

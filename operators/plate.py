@@ -1,0 +1,167 @@
+"""bpy.ops.platelight.setup_plate(filepath=...): load a movie or an image sequence as the plate and
+match the scene to it (size, frame range, frame rate, camera background, colour management).
+
+Re-running it updates the one plate image ("PlateLight Plate") instead of adding another.
+Colour spaces are explicit: float files (EXR, HDR) are scene-linear, 8/16-bit files are sRGB;
+with the Standard view transform an sRGB plate comes out as it went in.
+"""
+import os
+import re
+
+import bpy
+from bpy.props import BoolProperty, FloatProperty, StringProperty
+
+from .common import PLATE_IMAGE_NAME
+from .composite import set_plate_colour_management
+
+MOVIE_EXTENSIONS = {".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".ogv"}
+_NUMBERED = re.compile(r"^(.*?)(\d+)(\.[A-Za-z0-9]+)$")
+
+
+class PlateError(Exception):
+    """A problem with the plate, worded for the user."""
+
+
+def scan_sequence(path):
+    """(first, last, count) of the numbered sequence ``path`` belongs to; raises PlateError for
+    missing frames. A file without a number is a single still (1, 1, 1)."""
+    folder, name = os.path.split(path)
+    match = _NUMBERED.match(name)
+    if not match:
+        return 1, 1, 1
+    prefix, digits, ext = match.groups()
+    pattern = re.compile(re.escape(prefix) + r"(\d+)" + re.escape(ext) + "$")
+    numbers = sorted(int(m.group(1)) for m in map(pattern.match, os.listdir(folder or ".")) if m)
+    missing = sorted(set(range(numbers[0], numbers[-1] + 1)) - set(numbers))
+    if missing:
+        shown = ", ".join(map(str, missing[:8])) + (" ..." if len(missing) > 8 else "")
+        raise PlateError(f"The plate sequence {prefix}#{ext} has {len(missing)} missing frame(s) "
+                         f"({shown}); render or copy them before using it as a plate.")
+    return numbers[0], numbers[-1], len(numbers)
+
+
+def _camera_is_animated(camera):
+    data = camera.animation_data
+    return bool((data and data.action) or camera.constraints or camera.parent)
+
+
+class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
+    """Load a movie clip or an image sequence as the plate and match the scene to it"""
+
+    bl_idname = "platelight.setup_plate"
+    bl_label = "Set Up Plate"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filepath: StringProperty(name="Plate", description="A movie file, or one image of a numbered sequence",
+                             subtype="FILE_PATH")
+    match_scene: BoolProperty(
+        name="Adopt Plate Settings",
+        description="Set the scene's resolution, frame range and frame rate to the plate's; off: "
+        "refuse a plate that disagrees with the scene",
+        default=True,
+    )
+    fps: FloatProperty(name="Frame Rate", description="Frame rate of an image sequence (0: keep the "
+                       "scene's)", default=0.0, min=0.0, max=1000.0)
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None:
+            cls.poll_message_set("Needs a scene")
+            return False
+        return True
+
+    def invoke(self, context, event):
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _load(self, path):
+        """(image, first, count, fps or None) without touching the scene."""
+        ext = os.path.splitext(path)[1].lower()
+        if ext in MOVIE_EXTENSIONS:
+            clip = bpy.data.movieclips.load(path)
+            try:
+                count, fps, size = clip.frame_duration, clip.fps, tuple(clip.size)
+            finally:
+                bpy.data.movieclips.remove(clip)
+            if count < 1 or size[0] == 0:
+                raise PlateError(f"Blender cannot read frames from the movie {path}.")
+            source, first = "MOVIE", 1
+        else:
+            first, _, count = scan_sequence(path)
+            source, fps = ("SEQUENCE" if count > 1 else "FILE"), None
+        try:
+            image = bpy.data.images.load(path, check_existing=False)
+        except RuntimeError:
+            raise PlateError(f"Blender cannot read {path} as an image or movie.") from None
+        image.source = source
+        if image.size[0] == 0 or image.size[1] == 0:
+            bpy.data.images.remove(image)
+            raise PlateError(f"Blender cannot read {path} as an image or movie.")
+        return image, first, count, fps
+
+    def execute(self, context):
+        scene = context.scene
+        path = bpy.path.abspath(self.filepath)
+        if not self.filepath or not os.path.isfile(path):
+            self.report({"ERROR"}, f"Plate file not found: {self.filepath or '(no file given)'}.")
+            return {"CANCELLED"}
+        try:
+            image, first, count, clip_fps = self._load(path)
+        except PlateError as err:
+            self.report({"ERROR"}, str(err))
+            return {"CANCELLED"}
+        width, height = image.size
+        fps = clip_fps or self.fps or None
+        render = scene.render
+        scene_fps = render.fps / render.fps_base
+        mismatch = []
+        if (render.resolution_x, render.resolution_y) != (width, height) or render.resolution_percentage != 100:
+            mismatch.append(f"the plate is {width}×{height} but the scene renders "
+                            f"{render.resolution_x * render.resolution_percentage // 100}×"
+                            f"{render.resolution_y * render.resolution_percentage // 100}")
+        if fps and abs(fps - scene_fps) > 1e-3:
+            mismatch.append(f"the plate runs at {fps:g} fps but the scene at {scene_fps:g} fps")
+        if mismatch and not self.match_scene:
+            bpy.data.images.remove(image)
+            self.report({"ERROR"}, "; ".join(mismatch).capitalize() + "; run again with "
+                        "'Adopt Plate Settings' (match_scene=True) to adopt the plate's.")
+            return {"CANCELLED"}
+
+        # --- one plate image, updated in place (compositor nodes and backgrounds keep it)
+        old = bpy.data.images.get(PLATE_IMAGE_NAME)
+        if old is not None:
+            old.user_remap(image)
+            bpy.data.images.remove(old)
+        image.name = PLATE_IMAGE_NAME
+        image.colorspace_settings.name = "Linear Rec.709" if image.is_float else "sRGB"
+        image["platelight_frame_offset"] = first - 1
+        render.resolution_x, render.resolution_y = width, height
+        render.resolution_percentage = 100
+        render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+        scene.frame_start, scene.frame_end = 1, count
+        if fps:
+            render.fps, render.fps_base = max(1, round(fps)), max(1, round(fps)) / fps
+        set_plate_colour_management(scene)
+
+        camera = scene.camera
+        if camera is not None and camera.type == "CAMERA":
+            camera.data.show_background_images = True
+            backgrounds = camera.data.background_images
+            background = next((b for b in backgrounds if b.image == image), None) or backgrounds.new()
+            background.source = "IMAGE"
+            background.image = image
+            background.image_user.frame_start = 1
+            background.image_user.frame_duration = count
+            background.image_user.frame_offset = first - 1
+        kind = "HDR, linear" if image.is_float else "8/16-bit, sRGB"
+        self.report({"INFO"}, f"Plate: {count} frame(s) of {width}×{height} ({kind})"
+                    + (f"; adopted: {'; '.join(mismatch)}" if mismatch else "") + ".")
+        if camera is None:
+            self.report({"WARNING"}, "The scene has no camera yet: track the plate or add one.")
+        elif count > 1 and not _camera_is_animated(camera):
+            self.report({"WARNING"}, f"The camera '{camera.name}' is not animated but the plate has "
+                        f"{count} frames: track it or key it, unless the shot was locked off.")
+        return {"FINISHED"}
+
+
+classes = (PLATELIGHT_OT_setup_plate,)
