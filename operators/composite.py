@@ -83,10 +83,8 @@ def _configure_layer(layer, cg_coll, phantom_coll, cg_state, phantom_holdout):
     ph.exclude = False
     ph.holdout = phantom_holdout
     ph.indirect_only = False
-    # anything else (the user's own collections) stays out of PlateLight's layers
-    for child in layer.layer_collection.children:
-        if child.collection not in (cg_coll, phantom_coll):
-            child.exclude = True
+    # other collections stay as they are: after the move they hold only lights, cameras,
+    # empties and objects hidden from render, and the lights must keep lighting every layer
 
 
 def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
