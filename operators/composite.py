@@ -156,6 +156,7 @@ def set_plate_colour_management(scene):
     view.exposure = 0.0
     view.gamma = 1.0
     view.use_curve_mapping = False
+    scene.render.dither_intensity = 0.0  # dither noise would change 8-bit plates
     scene.sequencer_colorspace_settings.name = "Linear Rec.709"
 
 

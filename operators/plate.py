@@ -75,7 +75,7 @@ class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def _load(self, path):
-        """(image, first, count, fps or None) without touching the scene."""
+        """(image, (width, height), first, count, fps or None) without touching the scene."""
         ext = os.path.splitext(path)[1].lower()
         if ext in MOVIE_EXTENSIONS:
             clip = bpy.data.movieclips.load(path)
@@ -93,11 +93,15 @@ class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
             image = bpy.data.images.load(path, check_existing=False)
         except RuntimeError:
             raise PlateError(f"Blender cannot read {path} as an image or movie.") from None
+        # read the size as a still first: a sequence reports 0×0 until a frame is shown
+        size = tuple(image.size)
+        is_float = image.is_float
         image.source = source
-        if image.size[0] == 0 or image.size[1] == 0:
+        if size[0] == 0 or size[1] == 0:
             bpy.data.images.remove(image)
             raise PlateError(f"Blender cannot read {path} as an image or movie.")
-        return image, first, count, fps
+        image.colorspace_settings.name = "Linear Rec.709" if is_float else "sRGB"
+        return image, size, first, count, fps
 
     def execute(self, context):
         scene = context.scene
@@ -106,11 +110,10 @@ class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
             self.report({"ERROR"}, f"Plate file not found: {self.filepath or '(no file given)'}.")
             return {"CANCELLED"}
         try:
-            image, first, count, clip_fps = self._load(path)
+            image, (width, height), first, count, clip_fps = self._load(path)
         except PlateError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
-        width, height = image.size
         fps = clip_fps or self.fps or None
         render = scene.render
         scene_fps = render.fps / render.fps_base
@@ -133,7 +136,6 @@ class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
             old.user_remap(image)
             bpy.data.images.remove(old)
         image.name = PLATE_IMAGE_NAME
-        image.colorspace_settings.name = "Linear Rec.709" if image.is_float else "sRGB"
         image["platelight_frame_offset"] = first - 1
         render.resolution_x, render.resolution_y = width, height
         render.resolution_percentage = 100
@@ -153,7 +155,7 @@ class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
             background.image_user.frame_start = 1
             background.image_user.frame_duration = count
             background.image_user.frame_offset = first - 1
-        kind = "HDR, linear" if image.is_float else "8/16-bit, sRGB"
+        kind = "HDR, linear" if image.colorspace_settings.name != "sRGB" else "8/16-bit, sRGB"
         self.report({"INFO"}, f"Plate: {count} frame(s) of {width}×{height} ({kind})"
                     + (f"; adopted: {'; '.join(mismatch)}" if mismatch else "") + ".")
         if camera is None:

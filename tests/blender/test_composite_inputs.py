@@ -1,0 +1,223 @@
+"""Plate and composite set-up: bad input gets one clear sentence and leaves the scene as it was;
+8-bit plates round-trip exactly; sequences keep their frame numbers; re-running never duplicates."""
+import math
+
+import numpy as np
+import pytest
+
+import support  # noqa: F401
+from platelight.addon.exr_io import read_exr, write_exr
+from composite_scene import add_camera, add_plane, add_sphere, add_sun, grey_world, random_plate, render
+
+
+def png(path, rgb8):
+    import cv2
+
+    assert cv2.imwrite(str(path), np.ascontiguousarray(rgb8[..., ::-1]))
+
+
+def scene_state(bpy):
+    scene = bpy.context.scene
+    return {
+        "resolution": (scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage),
+        "frames": (scene.frame_start, scene.frame_end),
+        "fps": (scene.render.fps, scene.render.fps_base),
+        "view_layers": [(vl.name, vl.use) for vl in scene.view_layers],
+        "collections": sorted(c.name for c in bpy.data.collections),
+        "objects": sorted((ob.name, tuple(sorted(c.name for c in ob.users_collection)), ob.is_shadow_catcher)
+                          for ob in scene.objects),
+        "images": sorted(i.name for i in bpy.data.images),
+        "node_groups": sorted(g.name for g in bpy.data.node_groups),
+        "tree": scene.compositing_node_group.name if scene.compositing_node_group else None,
+        "view": scene.view_settings.view_transform,
+        "engine": scene.render.engine,
+    }
+
+
+def basic_scene(bpy, tmp_path, phantoms=True):
+    scene = bpy.context.scene
+    add_camera(bpy, scene)
+    if phantoms:
+        add_plane(bpy, scene).platelight.phantom = True
+    add_sphere(bpy, scene)
+    add_sun(bpy, scene)
+    grey_world(bpy, scene, 0.0)
+    return scene
+
+
+def test_composite_without_plate_is_refused_and_scene_kept(bpy_clean):
+    bpy = bpy_clean
+    basic_scene(bpy, None)
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError, match="No plate found"):
+        bpy.ops.platelight.setup_composite()
+    assert scene_state(bpy) == before
+
+
+def test_composite_without_cg_is_refused(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    add_camera(bpy, scene)
+    add_plane(bpy, scene).platelight.phantom = True
+    random_plate(tmp_path / "plate.exr")
+    bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr"))
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError, match="no CG objects"):
+        bpy.ops.platelight.setup_composite()
+    assert scene_state(bpy) == before
+
+
+def test_composite_needs_a_camera(bpy_clean):
+    bpy = bpy_clean
+    add_sphere(bpy, bpy.context.scene)
+    with pytest.raises(RuntimeError, match="needs a camera"):
+        bpy.ops.platelight.setup_composite()
+
+
+def test_no_phantoms_still_composites_and_says_so(bpy_clean, tmp_path, capfd):
+    bpy = bpy_clean
+    scene = basic_scene(bpy, tmp_path, phantoms=False)
+    plate = random_plate(tmp_path / "plate.exr")
+    bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr"))
+    assert bpy.ops.platelight.setup_composite(samples=4) == {"FINISHED"}
+    assert "no phantoms" in capfd.readouterr().out
+    out = render(bpy, scene, tmp_path / "out.exr")
+    alpha_free = np.all(np.abs(out[..., :3] - plate) <= 1e-6, axis=2)
+    assert 0.6 < alpha_free.mean() < 0.99  # the plate everywhere but on the sphere: no shadow
+
+
+def test_rerunning_never_duplicates(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    basic_scene(bpy, tmp_path)
+    random_plate(tmp_path / "plate.exr")
+    for method in ("DIFFERENTIAL", "CATCHER", "DIFFERENTIAL"):
+        bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr"))
+        assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
+    state = scene_state(bpy)
+    assert state["images"] == ["PlateLight Plate"]
+    assert state["node_groups"] == ["PlateLight Composite", "PlateLight Differential"]
+    assert [c for c in state["collections"] if c.startswith("PlateLight")] == ["PlateLight CG", "PlateLight Phantoms"]
+    assert [n for n, use in state["view_layers"] if use] == [
+        "PlateLight CG", "PlateLight Local", "PlateLight Local Without"]
+
+
+def test_missing_file_and_unreadable_file(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    add_camera(bpy, bpy.context.scene)
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError, match="Plate file not found"):
+        bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "nope.png"))
+    (tmp_path / "fake.png").write_text("not an image")
+    with pytest.raises(RuntimeError, match="cannot read"):
+        bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "fake.png"))
+    assert scene_state(bpy) == before
+
+
+def test_missing_frames_in_sequence(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    add_camera(bpy, bpy.context.scene)
+    for n in (1, 2, 4, 5):
+        png(tmp_path / f"plate_{n:04d}.png", np.full((18, 32, 3), 40 * n, np.uint8))
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError, match=r"1 missing frame\(s\) \(3\)"):
+        bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate_0001.png"))
+    assert scene_state(bpy) == before
+
+
+def test_size_and_rate_mismatch_refused_unless_adopted(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    add_camera(bpy, scene)
+    for n in (1, 2, 3):
+        png(tmp_path / f"p{n}.png", np.full((18, 32, 3), 50 * n, np.uint8))
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError, match=r"plate is 32×18 but the scene renders 1920×1080.*adopt"):
+        bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "p1.png"), match_scene=False)
+    with pytest.raises(RuntimeError, match="runs at 30 fps but the scene at 24 fps"):
+        bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "p1.png"), match_scene=False, fps=30)
+    assert scene_state(bpy) == before
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "p1.png"), fps=30) == {"FINISHED"}
+    assert (scene.render.resolution_x, scene.render.resolution_y) == (32, 18)
+    assert (scene.frame_start, scene.frame_end) == (1, 3)
+    assert scene.render.fps / scene.render.fps_base == pytest.approx(30)
+    bg = scene.camera.data.background_images
+    assert len(bg) == 1 and bg[0].image.name == "PlateLight Plate"
+
+
+def test_static_camera_with_moving_plate_is_reported(bpy_clean, tmp_path, capfd):
+    bpy = bpy_clean
+    add_camera(bpy, bpy.context.scene)
+    for n in (1, 2):
+        png(tmp_path / f"s{n}.png", np.full((18, 32, 3), 90, np.uint8))
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "s1.png")) == {"FINISHED"}
+    assert "is not animated but the plate has 2 frames" in capfd.readouterr().out
+
+
+def test_8bit_plate_roundtrips_exactly_next_to_hdr_render(bpy_clean, tmp_path):
+    """An 8-bit sRGB plate is read as sRGB (explicitly), composited in linear float with the HDR
+    render, and written back as 8-bit sRGB: untouched pixels come back byte for byte."""
+    import cv2
+
+    bpy = bpy_clean
+    scene = basic_scene(bpy, tmp_path)
+    rng = np.random.default_rng(5)
+    plate8 = rng.integers(0, 256, (54, 96, 3), dtype=np.uint8)
+    png(tmp_path / "plate8.png", plate8)
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate8.png")) == {"FINISHED"}
+    assert bpy.data.images["PlateLight Plate"].colorspace_settings.name == "sRGB"
+    assert bpy.ops.platelight.setup_composite(samples=4) == {"FINISHED"}
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_depth = "8"
+    scene.render.image_settings.color_mode = "RGB"
+    scene.render.filepath = str(tmp_path / "out.png")
+    bpy.ops.render.render(write_still=True)
+    out = cv2.imread(str(tmp_path / "out.png"))[..., ::-1]
+    same = np.all(out == plate8, axis=2)
+    assert same.mean() > 0.75      # everything but the sphere and its shadow
+    assert not same.all()
+
+
+def test_sequence_frames_keep_their_numbers(bpy_clean, tmp_path):
+    """A sequence numbered from 101: scene frame 1 shows file 101, frame 3 shows file 103."""
+    bpy = bpy_clean
+    scene = basic_scene(bpy, tmp_path, phantoms=False)
+    scene.objects["Sphere"].location = (50, -50, 0)  # out of view: the plate everywhere
+    frames = {}
+    for k, n in enumerate((101, 102, 103)):
+        frames[k + 1] = np.full((18, 32, 3), 0.1 + 0.2 * k, np.float32)
+        write_exr(tmp_path / f"shot.{n:04d}.exr", frames[k + 1])
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "shot.0101.exr")) == {"FINISHED"}
+    assert (scene.frame_start, scene.frame_end) == (1, 3)
+    assert bpy.ops.platelight.setup_composite(samples=1) == {"FINISHED"}
+    for frame in (1, 3):
+        scene.frame_set(frame)
+        out = render(bpy, scene, tmp_path / f"out{frame}.exr")
+        np.testing.assert_allclose(out[..., :3], frames[frame], atol=1e-6)
+
+
+def test_lights_from_bad_probe(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    write_exr(tmp_path / "square.exr", np.ones((16, 16, 3), np.float32))
+    scene.platelight.world_probe = str(tmp_path / "square.exr")
+    with pytest.raises(RuntimeError, match="twice as wide"):
+        bpy.ops.platelight.lights_from_probe()
+    assert "PlateLight Lights" not in bpy.data.collections
+    scene.platelight.world_probe = str(tmp_path / "missing.exr")
+    with pytest.raises(RuntimeError, match="World probe not found"):
+        bpy.ops.platelight.lights_from_probe()
+
+
+def test_lights_from_probe_rerun_replaces_and_keeps_manual_lights(bpy_clean, studio_hdris):
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    manual = add_sun(bpy, scene)
+    scene.platelight.world_probe = str(studio_hdris["sunrise"])
+    for count in (8, 4):
+        assert bpy.ops.platelight.lights_from_probe(count=count) == {"FINISHED"}
+    made = bpy.data.collections["PlateLight Lights"].objects
+    assert len(made) == 5 and "PlateLight Sun" in made
+    assert manual.name in scene.objects
+    sun = made["PlateLight Sun"]
+    assert math.degrees(sun.data.angle) < 2.0
+    assert not scene.world or not scene.world.cycles_visibility.diffuse
