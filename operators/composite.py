@@ -120,7 +120,6 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     cg.scene = scene
     cg.layer = LAYER_CG
     cg.location = (-600, 0)
-    links.new(cg.outputs["Image"], diff.inputs["CG"])
 
     def maybe_denoised(socket, location):
         if not denoise_shadows:
@@ -130,6 +129,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         links.new(socket, node.inputs["Image"])
         return node.outputs["Image"]
 
+    links.new(maybe_denoised(cg.outputs["Image"], (-300, 100)), diff.inputs["CG"])
     if method == "CATCHER":
         links.new(maybe_denoised(cg.outputs["Shadow Catcher"], (-300, -200)), diff.inputs["With"])
     else:
@@ -191,8 +191,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         default=4.0, min=1.0, max=1000.0,
     )
     denoise_shadows: BoolProperty(
-        name="Denoise Shadows",
-        description="Run OpenImageDenoise on the shadow/local-scene passes before dividing",
+        name="Denoise",
+        description="Run OpenImageDenoise on the CG and on the shadow/local-scene passes before "
+        "dividing (smooth at few samples; the plate may then change by ~1e-4 far from the CG)",
         default=False,
     )
     samples: IntProperty(

@@ -96,6 +96,12 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
         made = create_sun_lights(scene, lights)
+        if self.replace_world_lighting:
+            # lights light diffuse surfaces, the world is what glossy surfaces reflect: each
+            # light path sees the probe's energy once
+            for ob in made:
+                ob.visible_glossy = False
+                ob.visible_transmission = False
         if self.replace_world_lighting and scene.world is not None:
             scene.world.cycles_visibility.diffuse = False
             scene.world.cycles_visibility.scatter = False
