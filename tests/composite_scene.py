@@ -96,6 +96,7 @@ def render_with_passes(bpy, scene, folder):
 def ground_points(bpy, scene):
     """World point where each pixel's centre ray meets z = 0 (NaN above the horizon): an
     independent pinhole model from the camera's own frame."""
+    bpy.context.view_layer.update()  # matrix_world of a camera just placed
     cam = scene.camera
     frame = [cam.matrix_world @ v for v in cam.data.view_frame(scene=scene)]
     # view_frame: top-right, bottom-right, bottom-left, top-left

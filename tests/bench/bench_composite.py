@@ -28,8 +28,8 @@ import support  # noqa: E402
 import conftest  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 
-W, H = 160, 90
-TRUTH_SAMPLES = 1024
+W, H = 128, 72
+TRUTH_SAMPLES = 512
 HDRI = "city"
 CACHE = support.REPO / "bench_out" / "composite"
 MATERIALS = {
@@ -38,7 +38,7 @@ MATERIALS = {
     "glossy": dict(colour=(0.8, 0.5, 0.3), roughness=0.3, metallic=1.0),
 }
 PLATELIGHT_SAMPLES = (4, 16, 64)
-CATCHER_SAMPLES = (4, 16, 64, 256)
+CATCHER_SAMPLES = (4, 16, 64, 192)
 SPHERE = (np.array([0.0, 0.0, 0.5]), 0.5)
 
 
@@ -59,10 +59,10 @@ def build(bpy, hdri_path, material):
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
     scene.camera = cam
-    cam.location = (0.6, -3.4, 1.5)
+    cam.location = (-2.2, -4.6, 2.2)
     from mathutils import Vector
 
-    cam.rotation_euler = Vector((0.6, 3.4, -1.2)).to_track_quat("-Z", "Y").to_euler()
+    cam.rotation_euler = Vector((1.9, 4.9, -1.9)).to_track_quat("-Z", "Y").to_euler()
     floor_mat = bpy.data.materials.new("Floor")
     floor_mat.node_tree.nodes.clear()
     diffuse = floor_mat.node_tree.nodes.new("ShaderNodeBsdfDiffuse")
@@ -150,6 +150,7 @@ def masks(truth, plate):
     import bpy
 
     scene = bpy.context.scene
+    bpy.context.view_layer.update()  # matrix_world of a camera just placed
     cam = scene.camera
     tr, br, bl, tl = (np.array(cam.matrix_world @ v) for v in cam.data.view_frame(scene=scene))
     u = (np.arange(W) + 0.5) / W
