@@ -121,25 +121,83 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     cg.layer = LAYER_CG
     cg.location = (-600, 0)
 
-    def maybe_denoised(socket, location):
-        if not denoise_shadows:
-            return socket
-        node = nodes.new("CompositorNodeDenoise")
-        node.location = location
-        links.new(socket, node.inputs["Image"])
-        return node.outputs["Image"]
+    def equal_everywhere(socket_a, socket_b_or_value, location):
+        """A factor that is 1 where all RGB channels of a equal b (a socket or a number)."""
+        x, y = location
+        sep_a = nodes.new("CompositorNodeSeparateColor")
+        sep_a.location = (x, y)
+        links.new(socket_a, sep_a.inputs["Image"])
+        sep_b = None
+        if isinstance(socket_b_or_value, bpy.types.NodeSocket):
+            sep_b = nodes.new("CompositorNodeSeparateColor")
+            sep_b.location = (x, y - 150)
+            links.new(socket_b_or_value, sep_b.inputs["Image"])
+        result = None
+        for k, channel in enumerate(("Red", "Green", "Blue")):
+            cmp = nodes.new("ShaderNodeMath")
+            cmp.operation = "COMPARE"
+            cmp.location = (x + 150, y - 60 * k)
+            links.new(sep_a.outputs[channel], cmp.inputs[0])
+            if sep_b is not None:
+                links.new(sep_b.outputs[channel], cmp.inputs[1])
+            else:
+                cmp.inputs[1].default_value = socket_b_or_value
+            cmp.inputs[2].default_value = 0.0
+            if result is None:
+                result = cmp.outputs[0]
+            else:
+                both = nodes.new("ShaderNodeMath")
+                both.operation = "MULTIPLY"
+                both.location = (x + 300, y - 60 * k)
+                links.new(result, both.inputs[0])
+                links.new(cmp.outputs[0], both.inputs[1])
+                result = both.outputs[0]
+        return result
 
-    links.new(maybe_denoised(cg.outputs["Image"], (-300, 100)), diff.inputs["CG"])
+    def denoised_unless(socket, keep_factor, location):
+        """OIDN on ``socket``, except where ``keep_factor`` is 1: there the raw pixel is kept,
+        so denoising never touches pixels the CG does not reach (the plate stays exact)."""
+        x, y = location
+        node = nodes.new("CompositorNodeDenoise")
+        node.location = (x, y)
+        links.new(socket, node.inputs["Image"])
+        mix = nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.location = (x + 200, y)
+        links.new(keep_factor, mix.inputs[0])
+        links.new(node.outputs["Image"], mix.inputs[6])
+        links.new(socket, mix.inputs[7])
+        return mix.outputs[2]
+
+    cg_image = cg.outputs["Image"]
+    if denoise_shadows:
+        alpha_zero = nodes.new("ShaderNodeMath")
+        alpha_zero.operation = "COMPARE"
+        alpha_zero.location = (-450, 150)
+        links.new(cg.outputs["Alpha"], alpha_zero.inputs[0])
+        alpha_zero.inputs[1].default_value = 0.0
+        alpha_zero.inputs[2].default_value = 0.0
+        cg_image = denoised_unless(cg_image, alpha_zero.outputs[0], (-300, 100))
+    links.new(cg_image, diff.inputs["CG"])
     if method == "CATCHER":
-        links.new(maybe_denoised(cg.outputs["Shadow Catcher"], (-300, -200)), diff.inputs["With"])
+        catcher = cg.outputs["Shadow Catcher"]
+        if denoise_shadows:
+            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, -250)), (-300, -200))
+        links.new(catcher, diff.inputs["With"])
     else:
+        local = {}
         for name, socket, y in ((LAYER_LOCAL, "With", -300), (LAYER_WITHOUT, "Without", -600)):
             node = nodes.new("CompositorNodeRLayers")
             node.name = node.label = name
             node.scene = scene
             node.layer = name
             node.location = (-600, y)
-            links.new(maybe_denoised(node.outputs["Image"], (-300, y)), diff.inputs[socket])
+            local[socket] = node.outputs["Image"]
+        if denoise_shadows:
+            same = equal_everywhere(local["With"], local["Without"], (-900, -450))
+            local = {k: denoised_unless(v, same, (-300, -300 if k == "With" else -600)) for k, v in local.items()}
+        for socket, value in local.items():
+            links.new(value, diff.inputs[socket])
     out = nodes.new("NodeGroupOutput")
     out.location = (400, 0)
     links.new(diff.outputs["Image"], out.inputs["Image"])
@@ -193,7 +251,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
     denoise_shadows: BoolProperty(
         name="Denoise",
         description="Run OpenImageDenoise on the CG and on the shadow/local-scene passes before "
-        "dividing (smooth at few samples; the plate may then change by ~1e-4 far from the CG)",
+        "dividing (smooth at few samples); pixels the CG does not reach keep their raw, exact values",
         default=False,
     )
     samples: IntProperty(

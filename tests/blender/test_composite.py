@@ -37,11 +37,14 @@ def test_plate_unchanged_where_nothing_touches_it(bpy_clean, tmp_path, method):
     assert np.median(passes["Shadows"][..., 0][shadow & ~sphere_hit(origin, rays, margin=0.05)]) < 0.5
 
 
-def test_plate_unchanged_wherever_render_says_untouched_full_light_paths(bpy_clean, tmp_path):
+@pytest.mark.parametrize("method,denoise", [("CATCHER", False), ("CATCHER", True), ("DIFFERENTIAL", True)])
+def test_plate_unchanged_wherever_render_says_untouched_full_light_paths(bpy_clean, tmp_path, method, denoise):
     """With every light path on (bounces, world light), each pixel that the CG does not reach
-    (alpha 0 and shadow ratio exactly 1) is bit-exact, and that is most of the frame."""
+    (alpha 0 and shadow ratio exactly 1) is bit-exact, and that is most of the frame; the
+    optional denoiser does not touch those pixels."""
     bpy = bpy_clean
-    scene, plate = build_scene(bpy, tmp_path, "CATCHER")
+    scene, plate = build_scene(bpy, tmp_path, method)
+    assert bpy.ops.platelight.setup_composite(method=method, samples=16, denoise_shadows=denoise) == {"FINISHED"}
     out, passes = render_with_passes(bpy, scene, tmp_path)
     free = (passes["CG"][..., 3] == 0) & np.all(passes["Shadows"][..., :3] == 1, axis=2)
     assert free.mean() > 0.6
