@@ -1,16 +1,21 @@
 """bpy.ops.platelight.lights_from_probe(): sun lights that stand in for the world probe's light,
 so phantoms get sharp, fast shadows (median cut + sun detection, addon/ibl/lights.py).
 
+Two modes: SUN_SKY moves the probe's sun into a sun lamp (sharp shadow, no sampling noise from a
+tiny bright texel blob) and gives the world the sun-less probe; LIGHTS replaces the world's
+diffuse lighting by the sun and N median-cut lamps (the paper's shadow-casting lights).
+
 The lights go into the collection "PlateLight Lights", which is rebuilt on every run; lights the
 user placed by hand elsewhere are left alone and keep working (the paper's manual lights).
 With ``replace_world_lighting`` the world stops lighting diffuse surfaces (the lights carry its
 energy instead, no double counting) but is still seen in reflections.
 """
 import os
+import tempfile
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, IntProperty
+from bpy.props import BoolProperty, EnumProperty, IntProperty
 from mathutils import Vector
 
 LIGHTS_COLLECTION = "PlateLight Lights"
@@ -53,6 +58,21 @@ def create_sun_lights(scene, lights, name_prefix="PlateLight"):
     return made
 
 
+def _sunless_probe_path(scene, probe_path):
+    folder = bpy.path.abspath(scene.platelight.maps_dir) if bpy.data.filepath else ""
+    if not folder:
+        folder = os.path.join(tempfile.gettempdir(), "platelight")
+    stem = os.path.splitext(os.path.basename(probe_path))[0]
+    return os.path.join(folder, f"{stem}_nosun.exr")
+
+
+def _world_environment_node(scene):
+    world = scene.world
+    if world is None or world.node_tree is None:
+        return None
+    return next((n for n in world.node_tree.nodes if n.type == "TEX_ENVIRONMENT"), None)
+
+
 class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
     """Add sun lights that carry the world probe's light (its sun, sharp, plus median-cut sky lights)"""
 
@@ -60,6 +80,15 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
     bl_label = "Lights from Probe"
     bl_options = {"REGISTER", "UNDO"}
 
+    mode: EnumProperty(
+        name="Mode",
+        items=(
+            ("SUN_SKY", "Sun Lamp + Sky", "Move the sun into a sharp sun lamp; the world keeps the "
+             "rest of the probe (needs an Environment Texture in the world)"),
+            ("LIGHTS", "Lamps Only", "The sun and median-cut lamps replace the world's diffuse lighting"),
+        ),
+        default="LIGHTS",
+    )
     count: IntProperty(name="Sky Lights", description="Number of median-cut lights for the sky",
                        default=16, min=1, max=1024)
     detect_sun: BoolProperty(name="Find Sun", description="Give the sun its own light with a sharp "
@@ -91,6 +120,8 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             env = read_exr(path)
+            if self.mode == "SUN_SKY":
+                return self._sun_and_sky(scene, path, env)
             lights = probe_lights(env, self.count, self.detect_sun)
         except PlateLightError as err:
             self.report({"ERROR"}, str(err))
@@ -109,6 +140,36 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
         extra = (f"; sun at elevation {np.degrees(np.arcsin(sun.direction[2])):.1f}°" if sun
                  else "; no sun found")
         self.report({"INFO"}, f"{len(made)} light(s) from {os.path.basename(path)}{extra}.")
+        return {"FINISHED"}
+
+
+    def _sun_and_sky(self, scene, path, env):
+        from ..addon.exr_io import write_exr
+        from ..addon.ibl.lights import split_sun
+
+        node = _world_environment_node(scene)
+        if node is None:
+            self.report({"ERROR"}, "Sun Lamp + Sky needs the probe in an Environment Texture of the "
+                        "world; use Lamps Only instead.")
+            return {"CANCELLED"}
+        sun, sky = split_sun(env)
+        if sun is None:
+            self.report({"WARNING"}, f"No sun found in {os.path.basename(path)}; nothing changed.")
+            return {"CANCELLED"}
+        sky_path = _sunless_probe_path(scene, path)
+        write_exr(sky_path, sky.astype(np.float32))
+        image = bpy.data.images.load(sky_path, check_existing=True)
+        image.reload()
+        image.colorspace_settings.name = "Linear Rec.709"
+        node.image = image
+        if not scene.platelight.world_probe:
+            scene.platelight.world_probe = path  # re-runs start from the probe with its sun
+        create_sun_lights(scene, [sun])
+        scene.world.cycles_visibility.diffuse = True
+        scene.world.cycles_visibility.scatter = True
+        self.report({"INFO"}, f"Sun moved into a lamp (elevation "
+                    f"{np.degrees(np.arcsin(sun.direction[2])):.1f}°, {np.degrees(sun.angle):.2f}° wide); "
+                    f"the world now shows {os.path.basename(sky_path)}.")
         return {"FINISHED"}
 
 

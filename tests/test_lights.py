@@ -120,3 +120,15 @@ def test_bad_input():
     env[5, 6] = -np.inf
     lights = L.probe_lights(env, 4)
     assert all(np.all(np.isfinite(light.rgb)) for light in lights)
+
+
+def test_split_sun_keeps_energy_and_leaves_a_sunless_sky():
+    env, disc = sky_with_sun((0.2, -0.5, 0.6))
+    sun, sky = L.split_sun(env)
+    assert sun.is_sun
+    h, w = env.shape[:2]
+    np.testing.assert_allclose(sun.rgb + total_energy(sky), total_energy(env), rtol=1e-6)
+    assert sky.max() < 1.0  # no sun left in the sky
+    unchanged = ~disc
+    np.testing.assert_array_equal(sky[unchanged], env[unchanged])
+    assert L.split_sun(np.ones((16, 32, 3), np.float32))[0] is None

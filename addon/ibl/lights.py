@@ -162,6 +162,23 @@ def median_cut(env: np.ndarray, count: int) -> list[DirectionalLight]:
     return [light for light in lights if light.strength > 0]
 
 
+def split_sun(env: np.ndarray, sun: SunSettings | None = None):
+    """(sun light, the probe without its sun) or (None, probe): the sun's texels are filled with
+    the surrounding sky and the light carries exactly the energy taken out, so
+    sun light + sun-less probe = the probe (energy kept)."""
+    env = _prepare(env)
+    found = find_sun(env, sun)
+    if found is None:
+        return None, env
+    sun_light, blob = found
+    filled = _fill_blob(env, blob)
+    omega = texel_solid_angles(*env.shape[:2])
+    removed = (env[blob] * omega[blob][:, None]).sum(axis=0)
+    added = (filled[blob] * omega[blob][:, None]).sum(axis=0)
+    sun_light.rgb = removed - added
+    return sun_light, filled
+
+
 def probe_lights(env: np.ndarray, count: int = 16, detect_sun: bool = True,
                  sun: SunSettings | None = None) -> list[DirectionalLight]:
     """The lights of a probe: its sun (if any and ``detect_sun``) first, then ``count`` median-cut
@@ -169,17 +186,9 @@ def probe_lights(env: np.ndarray, count: int = 16, detect_sun: bool = True,
     env = _prepare(env)
     lights = []
     if detect_sun:
-        found = find_sun(env, sun)
-        if found is not None:
-            sun_light, blob = found
+        sun_light, env = split_sun(env, sun)
+        if sun_light is not None:
             lights.append(sun_light)
-            # the sky that replaces the sun must not add energy: remove what the fill adds
-            filled = _fill_blob(env, blob)
-            omega = texel_solid_angles(*env.shape[:2])
-            removed = (env[blob] * omega[blob][:, None]).sum(axis=0)
-            added = (filled[blob] * omega[blob][:, None]).sum(axis=0)
-            sun_light.rgb = removed - added
-            env = filled
     return lights + median_cut(env, count)
 
 

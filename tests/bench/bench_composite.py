@@ -37,8 +37,9 @@ MATERIALS = {
     "mirror": dict(colour=(0.9, 0.9, 0.9), roughness=0.0, metallic=1.0),
     "glossy": dict(colour=(0.8, 0.5, 0.3), roughness=0.3, metallic=1.0),
 }
-PLATELIGHT_SAMPLES = (4, 16, 64)
-CATCHER_SAMPLES = (4, 16, 64, 192)
+ROUTES = (("platelight lamps", (4, 16, 64)), ("platelight sun+sky", (4, 16, 64)),
+          ("cycles catcher", (4, 16, 64, 192)))
+ROUTE_KEYS = {"platelight lamps": "lamps", "platelight sun+sky": "sunsky", "cycles catcher": "cycles"}
 SPHERE = (np.array([0.0, 0.0, 0.5]), 0.5)
 
 
@@ -128,9 +129,11 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path):
     scene, floor, sphere = build(bpy, hdri_path, material)
     floor.platelight.phantom = True
     t0 = time.perf_counter()
-    if route == "platelight":
+    if route == "lamps":
         scene.platelight.world_probe = hdri_path
-        assert bpy.ops.platelight.lights_from_probe(count=16) == {"FINISHED"}
+        assert bpy.ops.platelight.lights_from_probe(mode="LIGHTS", count=16) == {"FINISHED"}
+    elif route == "sunsky":
+        assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(samples=samples, denoise_shadows=True) == {"FINISHED"}
     setup = time.perf_counter() - t0
@@ -181,10 +184,11 @@ def main(out_dir: pathlib.Path) -> None:
         build(bpy, hdri_path, material)  # for the camera used by the masks
         obj, shadow = masks(truth, plate)
         peak = float(np.percentile(truth, 99.5))
-        for route, sample_counts in (("platelight", PLATELIGHT_SAMPLES), ("cycles catcher", CATCHER_SAMPLES)):
+        for route, sample_counts in ROUTES:
             for samples in sample_counts:
-                image, seconds = composite(bpy, hdri_path, material, plate_path, route.split()[0], samples,
-                                           CACHE / f"comp_{name}_{route.split()[0]}_{samples}.exr")
+                key = ROUTE_KEYS[route]
+                image, seconds = composite(bpy, hdri_path, material, plate_path, key, samples,
+                                           CACHE / f"comp_{name}_{key}_{samples}.exr")
                 rows.append(dict(material=name, route=route, samples=samples, seconds=seconds,
                                  psnr_object=psnr(image, truth, obj, peak),
                                  psnr_shadow=psnr(image, truth, shadow, peak),
@@ -207,9 +211,11 @@ def write_report(out_dir, rows):
         f"Sphere on a grey floor under the bundled `{HDRI}` HDRI, {W}×{H}. Truth: Cycles path-traced with "
         f"the sphere present, {TRUTH_SAMPLES} spp (no denoiser); plate: the same without the sphere. "
         "Composites onto that plate with the floor as a phantom (shadow catcher), OIDN on the CG and "
-        "the shadow pass. *platelight*: floor lit by the probe's lights (sun + 16 median-cut, "
-        "`platelight.lights_from_probe`), the world only in reflections; *cycles catcher*: the "
-        "world lights everything. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
+        "the shadow pass. *platelight lamps*: floor and CG lit by the probe's lamps (sun + 16 "
+        "median-cut, `lights_from_probe(mode='LIGHTS')`), the world only in reflections; "
+        "*platelight sun+sky*: the probe's sun moved into a sharp sun lamp, the world shows the "
+        "sun-less probe (`lights_from_probe(mode='SUN_SKY')`); *cycles catcher*: the world "
+        "(with its sun) lights everything. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
         "over the truth's shadow on the floor (>3 % darker than the plate), and over the frame. "
         "Time: lights + set-up + render + composite, on this 2-core machine shared with other jobs "
         "(so only comparable within one run). Produced by `tests/bench/bench_composite.py`.",
@@ -227,7 +233,7 @@ def write_report(out_dir, rows):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, title in ((axes[0], "psnr_object", "object"), (axes[1], "psnr_shadow", "shadowed floor")):
         for material, marker in zip(MATERIALS, "osD"):
-            for route, colour in (("platelight", "tab:orange"), ("cycles catcher", "tab:blue")):
+            for route, colour in zip(ROUTE_KEYS, ("tab:orange", "tab:green", "tab:blue")):
                 pts = [(r["seconds"], r[key]) for r in rows if r["material"] == material and r["route"] == route]
                 if pts:
                     xs, ys = zip(*pts)

@@ -221,3 +221,30 @@ def test_lights_from_probe_rerun_replaces_and_keeps_manual_lights(bpy_clean, stu
     sun = made["PlateLight Sun"]
     assert math.degrees(sun.data.angle) < 2.0
     assert not scene.world or not scene.world.cycles_visibility.diffuse
+
+
+def test_sun_moved_into_a_lamp_and_out_of_the_world(bpy_clean, studio_hdris):
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    world = bpy.data.worlds.new("Probe")
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(studio_hdris["sunrise"]))
+    scene.world = world
+    for _ in range(2):  # a re-run starts again from the probe with its sun
+        assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
+    lamps = bpy.data.collections["PlateLight Lights"].objects
+    assert [ob.name for ob in lamps] == ["PlateLight Sun"]
+    assert env.image.filepath.endswith("sunrise_nosun.exr")
+    sky = read_exr(bpy.path.abspath(env.image.filepath))
+    assert sky.max() < 0.05 * read_exr(studio_hdris["sunrise"]).max()
+    assert scene.platelight.world_probe == str(studio_hdris["sunrise"])
+    assert 3.0 < lamps[0].data.energy < 10.0  # sunrise's sun: ~5 W/m² in probe units
+
+
+def test_sun_and_sky_needs_an_environment_texture(bpy_clean, studio_hdris):
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    scene.platelight.world_probe = str(studio_hdris["sunrise"])
+    with pytest.raises(RuntimeError, match="Environment Texture"):
+        bpy.ops.platelight.lights_from_probe(mode="SUN_SKY")
+    assert "PlateLight Lights" not in bpy.data.collections
