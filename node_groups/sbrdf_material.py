@@ -155,10 +155,14 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
 
 
 def refresh_probe_maps():
-    """Reload every probe group's maps (after a bake, or when a folder switched to a sequence)."""
+    """Reload every probe group's maps (after a bake, or when a folder switched to a sequence);
+    returns how many probe groups were refreshed."""
+    count = 0
     for tree in bpy.data.node_groups:
         if tree.bl_idname == "ShaderNodeTree" and probe_maps.FOLDER_KEY in tree:
             probe_maps.bind_images(tree)
+            count += 1
+    return count
 
 
 def params_dict(params: SBRDFParams) -> dict:

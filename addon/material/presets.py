@@ -44,3 +44,35 @@ def preset_params(name: str) -> SBRDFParams:
 
 def preset_label(name: str) -> str:
     return name.replace("_", " ").title()
+
+
+PRESET_SUBDIR = "platelight_sbrdf"
+
+
+def preset_file_text(params: SBRDFParams) -> str:
+    """A Blender preset script (the format AddPresetBase writes) setting the SBRDF node's inputs
+    of the material in context."""
+    from .params import PARAMETERS
+
+    lines = ["import bpy",
+             "node = bpy.context.material.node_tree.nodes['PlateLight SBRDF']"]
+    for spec in PARAMETERS:
+        value = getattr(params, spec.name)
+        if spec.kind == "color":
+            value = (*[float(c) for c in value], 1.0)
+        lines.append(f"node.inputs[{spec.label!r}].default_value = {value!r}")
+    return "\n".join(lines) + "\n"
+
+
+def write_preset_files(folder) -> list:
+    """Write one preset script per built-in preset (shipped in presets/platelight_sbrdf/)."""
+    import os
+
+    os.makedirs(folder, exist_ok=True)
+    paths = []
+    for name in PRESETS:
+        path = os.path.join(folder, preset_label(name) + ".py")
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write(preset_file_text(preset_params(name)))
+        paths.append(path)
+    return paths
