@@ -28,7 +28,7 @@ PRESETS = {
     "marble": dict(diffuse_albedo=(0.85, 0.83, 0.8), specular_albedo=(0.04, 0.04, 0.04),
                    glossiness=0.7, fresnel_falloff=1.0 / 6.0),
     "emissive": dict(diffuse_albedo=(0.05, 0.05, 0.05), specular_albedo=(0.04, 0.04, 0.04),
-                     glossiness=0.9, emission_color=(1.0, 0.85, 0.6), emission_strength=10.0),
+                     glossiness=0.9, emission_color=(1.0, 0.85, 0.6), emission_strength=4.0),
 }
 
 
