@@ -43,7 +43,6 @@ def build_principled_material(name: str, values: PrincipledValues):
     import bpy
 
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
     node = principled_node(material)
     for field, value in dataclasses.asdict(values).items():
         socket = SOCKETS[field]

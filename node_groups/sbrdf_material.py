@@ -80,7 +80,6 @@ def resolve_probe_dir(obj, scene) -> tuple[str, str]:
 def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | None = None):
     """A new material shading with the SBRDF bound to the maps in ``probe_dir``."""
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
     tree = material.node_tree
     tree.nodes.clear()
     group = tree.nodes.new("ShaderNodeGroup")

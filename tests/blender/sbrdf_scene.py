@@ -98,7 +98,6 @@ def render(bpy, path: pathlib.Path) -> np.ndarray:
 def position_material(bpy):
     """Emission showing object coordinates as 0.25 * P + 0.5 (to read P back per pixel)."""
     mat = bpy.data.materials.new("PositionPass")
-    mat.use_nodes = True
     nt = mat.node_tree
     nt.nodes.clear()
     tc = nt.nodes.new("ShaderNodeTexCoord")

@@ -27,7 +27,6 @@ def _sphere(bpy, name="Ball"):
 
 def _principled(bpy, name="Red"):
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
     node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     node.inputs["Base Color"].default_value = (0.8, 0.1, 0.05, 1.0)
     node.inputs["Roughness"].default_value = 0.0
@@ -215,3 +214,24 @@ def test_convert_to_principled_and_back(bpy_clean, tmp_path):
     back = sm.read_params(ob.active_material)
     assert back.specular_albedo == pytest.approx((0.9, 0.9, 0.9), abs=1e-6)
     assert back.glossiness == pytest.approx(1.0)
+
+
+def test_render_preset_row_leaves_the_scene_alone(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    from bl_ext.dev.platelight.node_groups.sbrdf_preview import render_preset_row
+
+    ob = _sphere(bpy, "UserObject")
+    before = (len(bpy.data.scenes), sorted(o.name for o in bpy.data.objects),
+              len(bpy.data.materials), bpy.context.scene.name)
+    out = render_preset_row(str(tmp_path / "row.png"), presets=["chrome", "plastic", "emissive"],
+                            sphere_px=24, samples=1)
+    after = (len(bpy.data.scenes), sorted(o.name for o in bpy.data.objects),
+             len(bpy.data.materials), bpy.context.scene.name)
+    assert before == after and ob.name in bpy.data.objects
+    image = bpy.data.images.load(out)
+    assert tuple(image.size) == (72, 24)
+    px = np.array(image.pixels[:]).reshape(24, 72, 4)[..., :3]
+    centres = [px[12, 12 + 24 * i] for i in range(3)]
+    assert centres[1][0] > 2 * centres[1][2]          # plastic is red
+    assert centres[2].min() > 0.8                      # emissive is bright
+    assert not np.allclose(centres[0], centres[1], atol=0.05)
