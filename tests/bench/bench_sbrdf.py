@@ -16,7 +16,6 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "blender"))
 import support  # noqa: E402,F401
 import conftest  # noqa: E402
 import sbrdf_scene as sc  # noqa: E402
