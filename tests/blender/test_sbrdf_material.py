@@ -235,3 +235,31 @@ def test_render_preset_row_leaves_the_scene_alone(bpy_clean, tmp_path):
     assert centres[1][0] > 2 * centres[1][2]          # plastic is red
     assert centres[2].min() > 0.8                      # emissive is bright
     assert not np.allclose(centres[0], centres[1], atol=0.05)
+
+
+def test_user_preset_through_blenders_preset_system(bpy_clean):
+    bpy = bpy_clean
+    import os
+
+    assert hasattr(bpy.types, "PLATELIGHT_PT_material")
+    ob = _sphere(bpy)
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob, preset_name="marble")
+    with bpy.context.temp_override(material=mat):
+        assert bpy.ops.platelight.sbrdf_preset_add(name="My Marble") == {"FINISHED"}
+    path = next(os.path.join(d, "My_Marble.py") for d in bpy.utils.preset_paths("platelight_sbrdf")
+                if os.path.isfile(os.path.join(d, "My_Marble.py")))
+    sm.write_params(mat, preset_params("chrome"))
+    with bpy.context.temp_override(material=mat):
+        bpy.ops.script.execute_preset(filepath=path, menu_idname="PLATELIGHT_MT_sbrdf_presets")
+    _close(sm.read_params(mat), preset_params("marble"))
+
+
+def test_group_interface_order(bpy_clean):
+    from bl_ext.dev.platelight.node_groups import sbrdf
+
+    group = sbrdf.ensure_sbrdf_group()
+    inputs = [i.name for i in group.interface.items_tree if i.in_out == "INPUT"]
+    assert inputs == [spec.label for spec in PARAMETERS] + ["Normal"]
+    outputs = [i.name for i in group.interface.items_tree if i.in_out == "OUTPUT"]
+    assert outputs == [n for n, _ in sbrdf.LOOKUP_SOCKETS + sbrdf.DEBUG_SOCKETS]
