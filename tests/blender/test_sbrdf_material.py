@@ -263,3 +263,57 @@ def test_group_interface_order(bpy_clean):
     assert inputs == [spec.label for spec in PARAMETERS] + ["Normal"]
     outputs = [i.name for i in group.interface.items_tree if i.in_out == "OUTPUT"]
     assert outputs == [n for n, _ in sbrdf.LOOKUP_SOCKETS + sbrdf.DEBUG_SOCKETS]
+
+
+class _Layout:
+    """Records what a panel draws (headless Blender has no UI to draw into)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = False
+        self.active = True
+
+    def _child(self, *args, **kwargs):
+        return _Layout(self.log)
+
+    row = column = _child
+
+    def label(self, text="", icon="NONE"):
+        self.log.append(("label", text))
+
+    def prop(self, data, prop, text=""):
+        getattr(data, prop)                     # the property must exist
+        self.log.append(("prop", text))
+
+    def operator(self, idname, text="", icon="NONE"):
+        self.log.append(("operator", idname))
+        return type("Props", (), {})()
+
+    def menu(self, idname, text=""):
+        self.log.append(("menu", idname))
+
+    def template_preview(self, material):
+        self.log.append(("preview", material.name))
+
+
+def test_material_panel_draws(bpy_clean, tmp_path):
+    import types
+
+    bpy = bpy_clean
+    panel = bpy.types.PLATELIGHT_PT_material
+    ob = _sphere(bpy)
+    ob.data.materials.append(_principled(bpy))
+    log = []
+    context = types.SimpleNamespace(object=ob, material=ob.active_material)
+    panel.draw(types.SimpleNamespace(layout=_Layout(log)), context)
+    assert ("operator", "platelight.apply_sbrdf") in log
+
+    ob.platelight.probe_dir = str(tmp_path / "missing")
+    mat = _sm().apply_sbrdf_material(ob)
+    log.clear()
+    context = types.SimpleNamespace(object=ob, material=mat)
+    panel.draw(types.SimpleNamespace(layout=_Layout(log)), context)
+    drawn = [text for kind, text in log if kind == "prop"]
+    assert sorted(drawn) == sorted(spec.label for spec in PARAMETERS)
+    assert any(kind == "label" and "Maps missing" in text for kind, text in log)
+    assert ("menu", "PLATELIGHT_MT_sbrdf_presets") in log
