@@ -12,11 +12,12 @@ from ..errors import PlateLightError
 from ..ibl.maps import map_filename
 
 WORLD_FOLDER = "_world"
-_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+_UNSAFE = re.compile(r"[^\w.-]+")
 
 
 def folder_name(object_name: str) -> str:
-    """A portable folder name for an object: unsafe characters become '_' (Windows, shells),
+    """A portable folder name for an object: anything but letters, digits, '.', '-' and '_'
+    becomes '_' (path separators, Windows' reserved characters, spaces for shells),
     and it never starts with '.' or '_' (the world's folder and hidden files)."""
     name = _UNSAFE.sub("_", object_name).strip("._ ") or "object"
     return name[:100]
