@@ -224,3 +224,39 @@ def test_phantom_shadow_catcher_is_seen_in_probes_and_restored(bpy_clean, tmp_pa
     assert floor.is_shadow_catcher
     bottom = read_map(tmp_path, "Sphere", "diffuse")[-1].mean(axis=0)
     assert bottom[2] > 3 * bottom[0]
+
+
+def test_panels_draw_and_menus_list_the_operator(bpy_clean, tmp_path):
+    """The UI code runs (draw() against real property groups) and the menus hold the operator."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path)
+    ob = add_sphere(bpy, "Sphere", (0, 0, 0))
+    module = bake_module()
+    assert module.menu_entry in bpy.types.VIEW3D_MT_object._dyn_ui_initialize()
+    panels = __import__(module.__package__.rsplit(".", 1)[0] + ".addon.ui.panels", fromlist=["x"])
+
+    class Recorder:
+        """Stands in for UILayout, which only Blender's window code can create."""
+        def __init__(self):
+            self.calls = []
+
+        def __getattr__(self, name):
+            def call(*args, **kwargs):
+                self.calls.append((name, args, kwargs))
+                if name in {"column", "row"}:
+                    return self
+                if name == "operator":
+                    return type("Props", (), {})()
+                return None
+            return call
+
+    for panel_cls in (panels.PLATELIGHT_PT_object, panels.PLATELIGHT_PT_scene):
+        recorder = Recorder()
+        panel = type("P", (), {"layout": recorder})()
+        panel_cls.draw(panel, bpy.context)
+        props = [args[1] for name, args, _ in recorder.calls if name == "prop"]
+        ops = [args[0] for name, args, _ in recorder.calls if name == "operator"]
+        assert "platelight.bake_probes" in ops
+        for prop in props:   # every drawn property exists
+            owner = ob.platelight if panel_cls is panels.PLATELIGHT_PT_object else bpy.context.scene.platelight
+            assert hasattr(owner, prop), prop
