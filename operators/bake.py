@@ -137,6 +137,15 @@ class Describer:
     def __init__(self):
         self._data = {}
         self._materials = {}
+        self._digests = {}
+
+    def seen_digest(self, ob, frame):
+        """Digest of ``seen_object``, computed once per object and frame however many probes
+        see the object (hashing dominates a cache hit otherwise)."""
+        key = (ob.name_full, frame)
+        if key not in self._digests:
+            self._digests[key] = content_hash(self.seen_object(ob))
+        return self._digests[key]
 
     def data(self, ob):
         data = ob.data
@@ -338,6 +347,7 @@ class ProbeBake:
         self._queue = []
         self._done = 0
         self._describer = Describer()
+        self._bounds = {}
 
     # ---- paths
     def maps_root(self):
@@ -399,7 +409,7 @@ class ProbeBake:
                 planes = self._camera_planes()
                 others = [o for o in scene.objects if renderable(o, self.view_layer)]
                 for ob in self.objects:
-                    centre, radius = world_bounds(ob)
+                    centre, radius = self.bounds(ob)
                     if culling.sphere_in_frustum(planes, centre, radius):
                         on_screen[ob.name] = True
                     origin = probe_origin(ob)
@@ -441,15 +451,21 @@ class ProbeBake:
             data.clip_start if data else 0.1, data.clip_end if data else 1000.0,
             orthographic=bool(data and data.type == "ORTHO"))
 
+    def bounds(self, ob):
+        """World bounding sphere at the current frame (memoised: planning and hashing ask often)."""
+        key = (ob.name_full, self.scene.frame_current)
+        if key not in self._bounds:
+            self._bounds[key] = world_bounds(ob)
+        return self._bounds[key]
+
     def _in_range(self, origin, other):
-        centre, radius = world_bounds(other)
+        centre, radius = self.bounds(other)
         return float(np.linalg.norm(centre - origin)) - radius <= self.scene.platelight.probe_distance
 
     # ---- probe rendering
     def begin(self):
         """Set up rendering for probes; everything changed here is put back by ``end()``."""
         scene, state = self.scene, self._state
-        self._frame0 = scene.frame_current
         self._tmpdir = tempfile.mkdtemp(prefix="platelight-probe-")
         cam_data = bpy.data.cameras.new(PROBE_CAMERA)
         cam_data.type = "PANO"
@@ -502,6 +518,8 @@ class ProbeBake:
         """Render the panorama seen from ``origin`` (world space) with ``hidden`` objects hidden;
         returns float32 (H, 2H, 3), first row the top (the Environment Texture's layout)."""
         global render_count
+        if self._camera is None:            # set up on the first render: cache hits never need it
+            self.begin()
         self._camera.location = tuple(float(x) for x in origin)
         restore = []
         try:
@@ -525,23 +543,24 @@ class ProbeBake:
     # ---- hashing
     def probe_hash(self, ob, origin, maps):
         settings = self.scene.platelight
-        seen = [self._describer.seen_object(o) for o in self.scene.objects
-                if o is not ob and o is not self._camera and renderable(o, self.view_layer)
-                and self._in_range(origin, o)]
+        frame = self.scene.frame_current
+        seen = sorted((o.name_full, self._describer.seen_digest(o, frame)) for o in self.scene.objects
+                      if o is not ob and o is not self._camera and renderable(o, self.view_layer)
+                      and self._in_range(origin, o))
         return content_hash({
-            "origin": np.asarray(origin), "maps": list(maps), "world": self._world_desc,
+            "origin": np.asarray(origin), "maps": list(maps), "world": self._world_digest,
             "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
                          settings.probe_distance],
             "render": [self.scene.cycles.max_bounces, self.scene.cycles.diffuse_bounces,
                        self.scene.cycles.glossy_bounces, self.scene.cycles.transmission_bounces],
-            "seen": sorted(seen, key=lambda d: d["name"]),
+            "seen": seen,
         })
 
     # ---- steps
     def start(self):
         self.validate()
-        self._world_desc = world_description(self.scene)
-        self.begin()
+        self._world_digest = content_hash(world_description(self.scene))
+        self._frame0 = self.scene.frame_current
         self._world_pending = bool(self.world_only)
         self._pending = list(self._queue)
 
@@ -576,6 +595,7 @@ class ProbeBake:
             result = compute_maps(env, self.map_settings(), which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
+            layout.remove_other_maps(folder, key_frame, keep=maps)
             layout.write_record(folder, key_frame, digest, maps, object=ob.name, scene_frame=frame,
                                 origin=[float(x) for x in origin],
                                 probe_size=[int(env.shape[1]), int(env.shape[0])])
@@ -600,7 +620,7 @@ class ProbeBake:
         if source is not None:
             # Full-resolution maps from the image itself (not capped by the probe height).
             settings.heights = dict(DEFAULT_HEIGHTS)
-        digest = content_hash({"world": self._world_desc, "source": source, "heights": settings.heights,
+        digest = content_hash({"world": self._world_digest, "source": source, "heights": settings.heights,
                                "sampling": settings.sampling,
                                "samples": None if source else scene.platelight.probe_samples,
                                "probe_height": None if source else scene.platelight.probe_height})

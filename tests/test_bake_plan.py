@@ -203,3 +203,10 @@ def test_check_writable(tmp_path):
     blocker.write_text("")
     with pytest.raises(PlateLightError, match="Cannot create the maps folder"):
         layout.check_writable(str(blocker / "maps"))
+
+
+def test_remove_other_maps_keeps_needed_and_other_frames(tmp_path):
+    for name in ("diffuse.exr", "specular.exr", "glossy1.exr", "specular_0002.exr", "notes.txt"):
+        (tmp_path / name).write_bytes(b"x")
+    assert layout.remove_other_maps(str(tmp_path), None, keep=("diffuse",)) == ["glossy1", "specular"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["diffuse.exr", "notes.txt", "specular_0002.exr"]

@@ -9,7 +9,7 @@ import re
 import tempfile
 
 from ..errors import PlateLightError
-from ..ibl.maps import map_filename
+from ..ibl.maps import MAP_NAMES, map_filename
 
 WORLD_FOLDER = "_world"
 _UNSAFE = re.compile(r"[^\w.-]+")
@@ -58,6 +58,18 @@ def write_record(folder: str, frame: int | None, digest: str, maps, **extra) -> 
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:
+    """Delete this frame's maps that the object no longer needs (a matte object that used to be
+    glossy), so no stale map is ever picked up. Returns the names removed."""
+    removed = []
+    for name in MAP_NAMES:
+        path = os.path.join(folder, map_filename(name, frame))
+        if name not in keep and os.path.isfile(path):
+            os.unlink(path)
+            removed.append(name)
+    return removed
 
 
 def check_writable(folder: str) -> None:
