@@ -301,19 +301,30 @@ def world_description(scene):
 
 
 def environment_exr(world):
-    """The EXR file behind the world's Environment Texture, when the world is just that image
-    (no mapping in between); None when the world has to be rendered instead."""
+    """(EXR path, strength) when the world is exactly an equirectangular EXR image feeding a
+    Background node into the World Output (no mapping, no colour nodes between); None when the
+    world has to be rendered instead to get it right."""
     tree = world.node_tree
     if tree is None:
         return None
-    envs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment" and n.image is not None]
-    if len(envs) != 1 or envs[0].inputs["Vector"].is_linked or envs[0].projection != "EQUIRECTANGULAR":
+    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output]
+    if len(outputs) != 1 or not outputs[0].inputs["Surface"].is_linked:
         return None
-    image = envs[0].image
+    background = outputs[0].inputs["Surface"].links[0].from_node
+    if background.bl_idname != "ShaderNodeBackground" or background.inputs["Strength"].is_linked:
+        return None
+    color = background.inputs["Color"]
+    if not color.is_linked:
+        return None
+    env = color.links[0].from_node
+    if (env.bl_idname != "ShaderNodeTexEnvironment" or env.image is None
+            or env.inputs["Vector"].is_linked or env.projection != "EQUIRECTANGULAR"):
+        return None
+    image = env.image
     path = bpy.path.abspath(image.filepath, library=image.library)
     if image.packed_file is not None or not path.lower().endswith(".exr") or not os.path.isfile(path):
         return None
-    return path
+    return path, float(background.inputs["Strength"].default_value)
 
 
 # --------------------------------------------------------------------------- the bake
@@ -615,18 +626,23 @@ class ProbeBake:
         folder_rel = self.world_folder()
         folder = self.abspath(folder_rel)
         settings = self.map_settings()
-        source = (self.abspath(scene.platelight.world_probe) if scene.platelight.world_probe
-                  else environment_exr(scene.world))
+        strength = 1.0
+        if scene.platelight.world_probe:
+            source = self.abspath(scene.platelight.world_probe)
+        else:
+            found = environment_exr(scene.world)
+            source, strength = found if found else (None, 1.0)
         if source is not None:
             # Full-resolution maps from the image itself (not capped by the probe height).
             settings.heights = dict(DEFAULT_HEIGHTS)
-        digest = content_hash({"world": self._world_digest, "source": source, "heights": settings.heights,
+        digest = content_hash({"world": self._world_digest, "source": source, "strength": strength,
+                               "heights": settings.heights,
                                "sampling": settings.sampling,
                                "samples": None if source else scene.platelight.probe_samples,
                                "probe_height": None if source else scene.platelight.probe_height})
         if not (self.use_cache and layout.is_cached(folder, None, digest, MAP_NAMES)):
             if source is not None:
-                env = read_exr(source, "RGB")
+                env = read_exr(source, "RGB") * np.float32(strength)
             else:
                 hidden = [o for o in scene.objects if renderable(o, self.view_layer)]
                 env = self.render_probe((0.0, 0.0, 0.0), hidden=hidden)

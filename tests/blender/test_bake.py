@@ -267,3 +267,42 @@ def test_panels_draw_and_menus_list_the_operator(bpy_clean, tmp_path):
         for prop in props:   # every drawn property exists
             owner = ob.platelight if panel_cls is panels.PLATELIGHT_PT_object else bpy.context.scene.platelight
             assert hasattr(owner, prop), prop
+
+
+def test_world_maps_follow_strength_and_fall_back_to_rendering_a_rotated_world(bpy_clean, tmp_path,
+                                                                             studio_hdris):
+    bpy = bpy_clean
+    from platelight.addon.exr_io import read_exr
+    from platelight.addon.ibl.maps import MapSettings, compute_maps
+
+    exr = studio_hdris["interior"]
+    scene = new_scene(bpy, tmp_path, env_exr=exr, height=64, samples=16)
+    background = scene.world.node_tree.nodes["Background"]
+    background.inputs["Strength"].default_value = 2.0
+    add_sphere(bpy, "Probe", (0, 0, 0))
+    bake(bpy, all_objects=True, cull=False)
+    env = read_exr(exr)
+    direct = compute_maps(env, MapSettings(), which=("diffuse",)).maps["diffuse"]
+    np.testing.assert_allclose(read_map(tmp_path, "_world", "diffuse"), 2 * direct, rtol=1e-4, atol=1e-6)
+
+    # A quarter turn about Z through a Mapping node: the EXR alone no longer says what the world
+    # looks like, so the world is rendered; its maps are the EXR's turned by a quarter.
+    tree = scene.world.node_tree
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], tree.nodes["Environment Texture"].inputs["Vector"])
+    mapping.inputs["Rotation"].default_value = (0, 0, np.pi / 2)
+    background.inputs["Strength"].default_value = 1.0
+    module = bake_module()
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1          # the world changed: one render of it
+    rendered = read_map(tmp_path, "_world", "diffuse")
+    small = compute_maps(env, MapSettings(heights={"diffuse": 16}), which=("diffuse",)).maps["diffuse"]
+    # The Mapping node turns the lookup vector by +90 degrees about Z (+X looks up +Y), so the
+    # texel at u shows the EXR at u - 1/4 (u = atan2(-y, x)/2pi + 0.5): a roll by +W/4.
+    turned = np.roll(small, small.shape[1] // 4, axis=1)
+    err = np.abs(rendered - turned).mean() / turned.mean()
+    wrong = np.abs(rendered - np.roll(small, -small.shape[1] // 4, axis=1)).mean() / turned.mean()
+    assert err < 0.03 and wrong > 3 * err, (err, wrong)
