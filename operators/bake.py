@@ -34,6 +34,11 @@ PROBE_CAMERA = "PlateLight Probe Camera"
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
+# Cycles builds the world's light-importance map at each render session: at the default 1024
+# columns that alone took 0.7-2.7 s on these 2 shared cores, the probe render 0.1-0.5 s. 256
+# columns is enough to find a sun for the few samples a probe takes (importance sampling only
+# changes noise, not the mean; docs/bench/bake.md measures the error).
+PROBE_WORLD_MAP_RESOLUTION = 256
 
 # Counts Cycles probe renders (tests and benchmarks read it to prove a cache hit renders nothing).
 render_count = 0
@@ -335,8 +340,9 @@ class ProbeBake:
     (always: restores the scene). ``summary()`` says what was baked, reused and skipped."""
 
     def __init__(self, context, objects, frames, *, static=True, use_cache=True,
-                 reuse_world=True, cull=True):
+                 reuse_world=True, cull=True, world_map_resolution=PROBE_WORLD_MAP_RESOLUTION):
         self.context = context
+        self.world_map_resolution = world_map_resolution      # None: leave the world's setting
         self.scene = context.scene
         self.view_layer = context.view_layer
         self.objects = list(objects)
@@ -513,6 +519,12 @@ class ProbeBake:
         # A box the size of one pixel: each texel is its own area, no blur from neighbours.
         state.set(cycles, "pixel_filter_type", "BOX")
         state.set(cycles, "filter_width", 1.0)
+        world = scene.world.cycles
+        limit = self.world_map_resolution
+        if limit and (world.sampling_method == "AUTOMATIC" or
+                      world.sampling_method == "MANUAL" and world.sample_map_resolution > limit):
+            state.set(world, "sampling_method", "MANUAL")
+            state.set(world, "sample_map_resolution", limit)
         prefs = _preferences(self.context)
         if prefs is not None and prefs.threads > 0:
             state.set(render, "threads_mode", "FIXED")

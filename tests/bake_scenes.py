@@ -101,6 +101,8 @@ def scene_snapshot(bpy):
         "cameras": sorted(c.name for c in bpy.data.cameras),
         "hide_render": {o.name: o.hide_render for o in bpy.data.objects},
         "catchers": {o.name: o.is_shadow_catcher for o in bpy.data.objects},
+        "world_map": ((scene.world.cycles.sampling_method, scene.world.cycles.sample_map_resolution)
+                      if scene.world else None),
         "active": bpy.context.view_layer.objects.active.name if bpy.context.view_layer.objects.active else None,
     }
 
