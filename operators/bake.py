@@ -550,7 +550,12 @@ class ProbeBake:
                 if not ob.hide_render:
                     ob.hide_render = True
                     restore.append(ob)
-            bpy.ops.render.render(write_still=True)
+            try:
+                bpy.ops.render.render(write_still=True)
+            except RuntimeError as exc:
+                reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
+                raise PlateLightError(f"Cycles could not render the probe at {tuple(round(float(x), 3) for x in origin)}: "
+                                      f"{reason}") from None
             render_count += 1
         finally:
             for ob in restore:
@@ -853,6 +858,9 @@ class PLATELIGHT_OT_bake_probes(bpy.types.Operator):
             self._stop(context, finish=False)
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
+        except Exception:
+            self._stop(context, finish=False)      # a bug: still give the user their scene back
+            raise
         done, total = job.progress
         context.window_manager.progress_update(done / total)
         context.workspace.status_text_set(f"PlateLight: baking probe {done}/{total} (Esc to cancel)")

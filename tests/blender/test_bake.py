@@ -306,3 +306,21 @@ def test_world_maps_follow_strength_and_fall_back_to_rendering_a_rotated_world(b
     err = np.abs(rendered - turned).mean() / turned.mean()
     wrong = np.abs(rendered - np.roll(small, -small.shape[1] // 4, axis=1)).mean() / turned.mean()
     assert err < 0.03 and wrong > 3 * err, (err, wrong)
+
+
+def test_probe_origin_object_sets_the_probe_centre(bpy_clean, tmp_path):
+    import json
+
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.0, 0.0, 0.0))
+    ob = add_sphere(bpy, "Sphere", (0, 0, 0), radius=0.5)
+    add_sphere(bpy, "Lamp", (0, 0, 3), radius=0.3, enabled=False, color=(0, 0, 0), emission=(4, 4, 4))
+    origin = bpy.data.objects.new("Origin", None)
+    scene.collection.objects.link(origin)
+    origin.location = (0, 0, 5)               # above the lamp: the lamp is now straight down
+    ob.platelight.probe_origin = origin
+    bake(bpy, all_objects=True, cull=False)
+    record = json.loads((maps_folder(tmp_path, "Sphere") / "bake.json").read_text())
+    assert record["origin"] == pytest.approx([0, 0, 5])
+    spec = read_map(tmp_path, "Sphere", "specular")
+    assert angle_deg(bright_direction(spec[..., 0]), (0, 0, -1)) < 5
