@@ -340,8 +340,10 @@ class ProbeBake:
     (always: restores the scene). ``summary()`` says what was baked, reused and skipped."""
 
     def __init__(self, context, objects, frames, *, static=True, use_cache=True,
-                 reuse_world=True, cull=True, world_map_resolution=PROBE_WORLD_MAP_RESOLUTION):
+                 reuse_world=True, cull=True, world_map_resolution=PROBE_WORLD_MAP_RESOLUTION,
+                 check_only=False):
         self.context = context
+        self.check_only = check_only          # compare hashes, render nothing, mark "stale"
         self.world_map_resolution = world_map_resolution      # None: leave the world's setting
         self.scene = context.scene
         self.view_layer = context.view_layer
@@ -355,6 +357,7 @@ class ProbeBake:
         self.reused = []
         self.skipped = []                        # (object name, why)
         self.world_only = []
+        self.stale = []                          # (object name, frame), check_only
         self.world_baked = False
         self.warnings = []
         self.cancelled = False
@@ -408,7 +411,8 @@ class ProbeBake:
             if max(ob.dimensions) <= 0:
                 raise PlateLightError(f"'{ob.name}' has zero size; scale it up to bake its probe.")
         root = self.abspath(self.maps_root())
-        layout.check_writable(root)
+        if not self.check_only:
+            layout.check_writable(root)
         self._plan()
 
     def _plan(self):
@@ -618,6 +622,10 @@ class ProbeBake:
         if self.use_cache and layout.is_cached(folder, key_frame, digest, maps):
             self.reused.append((ob.name, frame))
             status = "baked (unchanged)"
+        elif self.check_only:
+            self.stale.append((ob.name, frame))
+            ob.platelight.probe_status = "stale"
+            return
         else:
             env = self.render_probe(origin, hidden=[ob])
             result = compute_maps(env, self.map_settings(), which=maps)
@@ -629,6 +637,10 @@ class ProbeBake:
                                 probe_size=[int(env.shape[1]), int(env.shape[0])])
             self.baked.append((ob.name, frame))
             status = "baked"
+        if self.check_only:
+            if not any(name == ob.name for name, _ in self.stale):
+                ob.platelight.probe_status = "up to date"
+            return
         ob.platelight.probe_dir = folder_rel
         ob.platelight.probe_hash = digest
         ob.platelight.probe_status = status if self.static else f"{status} (frames {self.frames[0]}-{self.frames[-1]})"
@@ -657,7 +669,14 @@ class ProbeBake:
                                "sampling": settings.sampling,
                                "samples": None if source else scene.platelight.probe_samples,
                                "probe_height": None if source else scene.platelight.probe_height})
-        if not (self.use_cache and layout.is_cached(folder, None, digest, MAP_NAMES)):
+        cached = self.use_cache and layout.is_cached(folder, None, digest, MAP_NAMES)
+        if self.check_only:
+            for ob in self.world_only:
+                ob.platelight.probe_status = "up to date (world maps)" if cached else "stale"
+                if not cached:
+                    self.stale.append((ob.name, None))
+            return
+        if not cached:
             if source is not None:
                 env = read_exr(source, "RGB") * np.float32(strength)
             else:
@@ -705,6 +724,15 @@ class ProbeBake:
         return self._done, max(self.total, 1)
 
     def summary(self):
+        if self.check_only:
+            names = sorted({name for name, _ in self.stale})
+            fresh = len({ob.name for ob in self.objects} - set(names)) - len(self.skipped)
+            text = f"PlateLight: {fresh} probe(s) up to date"
+            if names:
+                text += f"; {len(names)} stale ({', '.join(names)})"
+            if self.skipped:
+                text += f"; {len(self.skipped)} off screen"
+            return text + "."
         parts = []
         if self.baked:
             parts.append(f"baked {len(self.baked)} probe(s)")
@@ -751,11 +779,9 @@ def bake_probes(context, objects, frames, *, static=True, use_cache=True, reuse_
 
 # --------------------------------------------------------------------------- operator
 
-class PLATELIGHT_OT_bake_probes(bpy.types.Operator):
-    """Render each PlateLight object's surroundings from its centre and bake its four maps"""
-    bl_idname = "platelight.bake_probes"
-    bl_label = "Bake PlateLight Probes"
-    bl_options = {"REGISTER", "UNDO"}
+class _ProbeOperator:
+    """What bake_probes and check_probes share: targets, frames, options, running the job."""
+    check_only = False
 
     all_objects: BoolProperty(name="All Objects", default=False,
                               description="Bake every PlateLight object in the scene, not only the selected ones")
@@ -799,7 +825,8 @@ class PLATELIGHT_OT_bake_probes(bpy.types.Operator):
         prefs = _preferences(context)
         use_cache = not self.force and (prefs is None or prefs.cache_bakes)
         return ProbeBake(context, target_objects(context, self.all_objects), frames, static=static,
-                         use_cache=use_cache, reuse_world=self.reuse_world, cull=self.cull)
+                         use_cache=use_cache or self.check_only, reuse_world=self.reuse_world,
+                         cull=self.cull, check_only=self.check_only)
 
     def execute(self, context):
         wm = context.window_manager
@@ -829,7 +856,7 @@ class PLATELIGHT_OT_bake_probes(bpy.types.Operator):
         return {"CANCELLED"} if job.cancelled else {"FINISHED"}
 
     def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
+        if bpy.app.background or context.window is None or self.check_only:
             return self.execute(context)
         try:
             self._job = self._make_job(context)
@@ -877,12 +904,27 @@ class PLATELIGHT_OT_bake_probes(bpy.types.Operator):
         return self._finish(self._job) if finish else {"CANCELLED"}
 
 
+class PLATELIGHT_OT_bake_probes(_ProbeOperator, bpy.types.Operator):
+    """Render each PlateLight object's surroundings from its centre and bake its four maps"""
+    bl_idname = "platelight.bake_probes"
+    bl_label = "Bake PlateLight Probes"
+    bl_options = {"REGISTER", "UNDO"}
+
+
+class PLATELIGHT_OT_check_probes(_ProbeOperator, bpy.types.Operator):
+    """Tell which probes are stale (their inputs changed since the bake) without rendering"""
+    bl_idname = "platelight.check_probes"
+    bl_label = "Check PlateLight Probes"
+    bl_options = {"REGISTER", "UNDO"}
+    check_only = True
+
+
 def menu_entry(self, context):
     self.layout.separator()
     self.layout.operator(PLATELIGHT_OT_bake_probes.bl_idname, icon="LIGHTPROBE_SPHERE")
 
 
-classes = (PLATELIGHT_OT_bake_probes,)
+classes = (PLATELIGHT_OT_bake_probes, PLATELIGHT_OT_check_probes)
 
 
 def register_extra():

@@ -5,6 +5,7 @@ import bpy
 from .registration import register_classes, unregister_classes
 
 BAKE_OP = "platelight.bake_probes"
+CHECK_OP = "platelight.check_probes"
 
 
 class PLATELIGHT_PT_object(bpy.types.Panel):
@@ -29,12 +30,14 @@ class PLATELIGHT_PT_object(bpy.types.Panel):
         col.prop(settings, "probe_dir")
         status = settings.probe_status
         icon = ("CHECKMARK" if status.startswith("baked") or status.startswith("world")
+                or status.startswith("up to date")
                 else "ERROR" if status in {"cancelled", "stale"} else "INFO")
         col.label(text=f"Probe: {status}", icon=icon)
         row = col.row(align=True)
         row.operator(BAKE_OP, text="Bake Selected", icon="LIGHTPROBE_SPHERE").all_objects = False
         op = row.operator(BAKE_OP, text="Re-bake", icon="FILE_REFRESH")
         op.all_objects, op.force = False, True
+        row.operator(CHECK_OP, text="Check", icon="VIEWZOOM").all_objects = False
 
 
 class PLATELIGHT_PT_scene(bpy.types.Panel):
@@ -58,6 +61,7 @@ class PLATELIGHT_PT_scene(bpy.types.Panel):
         op = col.operator(BAKE_OP, text="Bake All Probes (Frame Range)", icon="RENDER_ANIMATION")
         op.all_objects, op.use_frame_range = True, True
         op.frame_start, op.frame_end = context.scene.frame_start, context.scene.frame_end
+        col.operator(CHECK_OP, text="Check All Probes", icon="VIEWZOOM").all_objects = True
 
 
 classes = (PLATELIGHT_PT_object, PLATELIGHT_PT_scene)

@@ -84,6 +84,11 @@ def test_unchanged_rebake_is_a_cache_hit_and_moving_rebakes_only_who_sees_it(bpy
     assert all(bpy.data.objects[n].platelight.probe_status == "baked (unchanged)" for n in "ABCD")
 
     b.location.x = 2.5
+    # Checking says who is stale, renders nothing and writes nothing.
+    assert bpy.ops.platelight.check_probes(all_objects=True, cull=False) == {"FINISHED"}
+    assert module.render_count == before
+    assert [bpy.data.objects[n].platelight.probe_status for n in "ABCD"] == \
+        ["stale", "stale", "up to date", "up to date"]
     bake(bpy, all_objects=True, cull=False)
     assert module.render_count == before + 2        # A (sees B) and B (its origin moved)
     after = {n: (maps_folder(tmp_path, n) / "diffuse.exr").stat().st_mtime_ns for n in "ABCD"}
