@@ -3,6 +3,7 @@ without opening Blender's window. bpy runs in this process (the project's enviro
 split a long range across machines with --part I/N (each writes only its own frames' files)."""
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import sys
@@ -60,6 +61,20 @@ def _import_bpy():
     return bpy
 
 
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """Send what C code prints on stdout (Cycles' 'Saved: ...' lines) to stderr for a while."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def run(args):
     blend = os.path.abspath(args.blend)
     _check_blend(blend)
@@ -80,7 +95,8 @@ def run(args):
     root = __package__.rsplit(".addon", 1)[0]
     package = importlib.import_module(root)
     try:
-        bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
+        with _stdout_to_stderr():
+            bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
     except RuntimeError as exc:
         raise PlateLightError(f"Blender cannot open {blend}: {str(exc).strip().splitlines()[-1]}") from None
     registered = hasattr(bpy.types.Object, "platelight") and hasattr(bpy.ops.platelight, "bake_probes")
@@ -105,11 +121,13 @@ def run(args):
     def progress(done, total):
         print(f"platelight bake: {done}/{total}", file=sys.stderr, flush=True)
 
-    job = bake.bake_probes(context, objects, frames or [scene.frame_current], static=frames is None,
-                           use_cache=not args.force, cull=not args.no_cull, progress=progress)
+    with _stdout_to_stderr():      # Blender's render log; stdout keeps only the summary
+        job = bake.bake_probes(context, objects, frames or [scene.frame_current], static=frames is None,
+                               use_cache=not args.force, cull=not args.no_cull, progress=progress)
     for warning in job.warnings:
         print(f"platelight bake: warning: {warning}", file=sys.stderr)
     print(job.summary())
     if args.save:
-        bpy.ops.wm.save_mainfile()
+        with _stdout_to_stderr():
+            bpy.ops.wm.save_mainfile()
     return 0

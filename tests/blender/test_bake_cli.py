@@ -28,7 +28,8 @@ def saved_scene(bpy_clean, tmp_path):
 def test_frame_range_split_over_two_machines(saved_scene, tmp_path, bpy_module):
     first = support.run_cli("bake", saved_scene, "--frames", "1-4", "--part", "1/2")
     assert first.returncode == 0, first.stderr
-    assert "baked 4 probe(s)" in first.stdout         # frames 1-2, two objects
+    # frames 1-2, two objects; stdout holds only the summary (the render log goes to stderr)
+    assert first.stdout.strip() == "PlateLight: baked 4 probe(s)."
     second = support.run_cli("bake", saved_scene, "--frames", "1-4", "--part", "2/2", "--save")
     assert second.returncode == 0, second.stderr
     for name in ("Ball", "Mover"):
@@ -45,6 +46,7 @@ def test_frame_range_split_over_two_machines(saved_scene, tmp_path, bpy_module):
     again = support.run_cli("bake", saved_scene, "--frames", "1-4")
     assert again.returncode == 0, again.stderr
     assert "reused 8 unchanged" in again.stdout and "baked" not in again.stdout
+    assert again.stdout.strip().splitlines() == ["PlateLight: reused 8 unchanged."]
 
 
 def test_single_frame_and_objects(saved_scene, tmp_path):
