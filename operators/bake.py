@@ -26,7 +26,8 @@ from ..addon.bake import culling, layout, needs
 from ..addon.bake.hashing import content_hash
 from ..addon.errors import PlateLightError
 from ..addon.exr_io import read_exr
-from ..addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, write_maps
+from ..addon.ibl.maps import (DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, map_filename,
+                              write_maps)
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 SBRDF_GROUP = "PlateLight SBRDF"
@@ -368,6 +369,7 @@ class ProbeBake:
         self._done = 0
         self._describer = Describer()
         self._bounds = {}
+        self._render_results = None
 
     # ---- paths
     def maps_root(self):
@@ -487,6 +489,7 @@ class ProbeBake:
     def begin(self):
         """Set up rendering for probes; everything changed here is put back by ``end()``."""
         scene, state = self.scene, self._state
+        self._render_results = {im.name for im in bpy.data.images if im.type == "RENDER_RESULT"}
         self._tmpdir = tempfile.mkdtemp(prefix="platelight-probe-")
         cam_data = bpy.data.cameras.new(PROBE_CAMERA)
         cam_data.type = "PANO"
@@ -641,9 +644,17 @@ class ProbeBake:
             if not any(name == ob.name for name, _ in self.stale):
                 ob.platelight.probe_status = "up to date"
             return
+        if self.scene.platelight.pack_maps:
+            self._pack(folder_rel, key_frame, maps, refresh=status == "baked")
         ob.platelight.probe_dir = folder_rel
         ob.platelight.probe_hash = digest
         ob.platelight.probe_status = status if self.static else f"{status} (frames {self.frames[0]}-{self.frames[-1]})"
+
+    def _pack(self, folder_rel, frame, maps, refresh):
+        for name in maps:
+            filename = map_filename(name, frame)
+            pack_map(folder_rel + filename, f"PlateLight {folder_rel.rstrip('/').rsplit('/', 1)[-1]}/{filename}",
+                     refresh)
 
     def world_folder(self):
         return self.folder_for(layout.WORLD_FOLDER)
@@ -687,6 +698,8 @@ class ProbeBake:
             write_maps(folder, result.maps, frame=None)
             layout.write_record(folder, None, digest, MAP_NAMES, source=source or "render")
             self.world_baked = True
+        if scene.platelight.pack_maps:
+            self._pack(folder_rel, None, MAP_NAMES, refresh=not cached)
         for ob in self.world_only:
             ob.platelight.probe_dir = folder_rel
             ob.platelight.probe_hash = digest
@@ -711,6 +724,10 @@ class ProbeBake:
             bpy.data.objects.remove(self._camera, do_unlink=True)
             bpy.data.cameras.remove(cam_data, do_unlink=True)
             self._camera = None
+        for image in [im for im in bpy.data.images if im.type == "RENDER_RESULT"]:
+            if self._render_results is not None and image.name not in self._render_results:
+                bpy.data.images.remove(image)       # the probe renders' result, not the user's
+        self._render_results = None
         if getattr(self, "_frame0", None) is not None and scene.frame_current != self._frame0:
             scene.frame_set(self._frame0)
         if self._tmpdir:
@@ -748,6 +765,25 @@ class ProbeBake:
             text = "PlateLight bake cancelled after " + ("; ".join(parts) if parts else "nothing") + \
                    "; finished maps were kept"
         return text + "."
+
+
+def pack_map(rel_path, label, refresh):
+    """Pack one map file into the .blend as the image ``label`` (its filepath the Blender-relative
+    file, so a material loading that file with check_existing finds it). Re-packing updates the
+    same image: never a duplicate."""
+    image = bpy.data.images.get(label)
+    if image is None:
+        image = bpy.data.images.load(rel_path, check_existing=True)
+        image.name = label
+    elif refresh or image.packed_file is None or image.filepath != rel_path:
+        if image.packed_file is not None:
+            image.unpack(method="REMOVE")
+        image.filepath = rel_path
+        image.reload()
+    else:
+        return image
+    image.pack()
+    return image
 
 
 def _preferences(context):

@@ -98,6 +98,7 @@ def scene_snapshot(bpy):
         "denoise": scene.cycles.use_denoising,
         "film_transparent": render.film_transparent,
         "objects": sorted(o.name for o in bpy.data.objects),
+        "images": sorted(im.name for im in bpy.data.images),
         "cameras": sorted(c.name for c in bpy.data.cameras),
         "hide_render": {o.name: o.hide_render for o in bpy.data.objects},
         "catchers": {o.name: o.is_shadow_catcher for o in bpy.data.objects},

@@ -50,7 +50,7 @@ class PLATELIGHT_PT_scene(bpy.types.Panel):
         layout = self.layout
         settings = context.scene.platelight
         layout.use_property_split = True
-        for name in ("world_probe", "maps_dir"):
+        for name in ("world_probe", "maps_dir", "pack_maps"):
             layout.prop(settings, name)
         col = layout.column(heading="Probes")
         for name in ("probe_height", "probe_samples", "probe_distance", "sampling"):

@@ -79,6 +79,12 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         "in a probe nor make it stale when they move",
         default=1000.0, min=0.01, soft_max=10000.0, unit="LENGTH",
     )
+    pack_maps: BoolProperty(
+        name="Pack Maps",
+        description="Also pack the baked maps into the .blend (one image per map file, updated in "
+        "place on re-bake), so the file renders without its maps folder",
+        default=False,
+    )
     sampling: EnumProperty(
         name="Sampling",
         description="How spherical harmonics are computed from the probe",
