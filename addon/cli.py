@@ -14,6 +14,7 @@ from .errors import PlateLightError
 SUBCOMMANDS = {
     "maps": ".ibl.cli_maps",
     "demo": ".demo",
+    "bake": ".bake.cli_bake",
 }
 
 
