@@ -25,7 +25,9 @@ def test_ar_demo_small(bpy_clean, tmp_path):
         assert on_cg.mean() > 0.03                          # the CG objects are in view
         assert np.abs(comp - plate)[on_cg].mean() > 0.02     # and change the picture there
         assert (shadows[..., 1] < 0.8).sum() > 10            # they cast shadows on the floor
+        # SBRDF objects shine their probe light onto the floor (an emission closure), so light
+        # from the CG reaches much of the floor: what it does not reach must be exact
         untouched = (cg[..., 3] == 0) & np.all(shadows == 1, axis=2)
-        assert untouched.mean() > 0.3
+        assert untouched.mean() > 0.1
         assert np.abs(comp - plate)[untouched].max() <= 1e-6
     assert not list(tmp_path.rglob("*.partial*"))
