@@ -11,6 +11,7 @@ _BPY_MODULES = (
     "operators",
     "addon.ui.material_panel",
     "addon.ui.panels",
+    "addon.ui.composite_panel",
 )
 
 

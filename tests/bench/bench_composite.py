@@ -37,9 +37,10 @@ MATERIALS = {
     "mirror": dict(colour=(0.9, 0.9, 0.9), roughness=0.0, metallic=1.0),
     "glossy": dict(colour=(0.8, 0.5, 0.3), roughness=0.3, metallic=1.0),
 }
-ROUTES = (("platelight lamps", (4, 16, 64)), ("platelight sun+sky", (4, 16, 64)),
-          ("cycles catcher", (4, 16, 64, 192)))
-ROUTE_KEYS = {"platelight lamps": "lamps", "platelight sun+sky": "sunsky", "cycles catcher": "cycles"}
+ROUTES = (("platelight sbrdf", (1, 4, 16)), ("platelight lamps", (4, 16, 64)),
+          ("platelight sun+sky", (4, 16, 64)), ("cycles catcher", (4, 16, 64, 192)))
+ROUTE_KEYS = {"platelight sbrdf": "sbrdf", "platelight lamps": "lamps", "platelight sun+sky": "sunsky",
+              "cycles catcher": "cycles"}
 SPHERE = (np.array([0.0, 0.0, 0.5]), 0.5)
 
 
@@ -134,11 +135,28 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path):
         assert bpy.ops.platelight.lights_from_probe(mode="LIGHTS", count=16) == {"FINISHED"}
     elif route == "sunsky":
         assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
+    elif route == "sbrdf":
+        sbrdf_sphere(bpy, scene, sphere, out_path)
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(samples=samples, denoise_shadows=True) == {"FINISHED"}
     setup = time.perf_counter() - t0
     image, render_time = render(bpy, scene, out_path)
     return image, setup + render_time
+
+
+def sbrdf_sphere(bpy, scene, sphere, out_path):
+    """The paper's CG: the sphere's Principled settings converted to the PlateLight SBRDF, shaded
+    from its own probe (baked from its centre: floor + world)."""
+    from platelight.addon.demo_ar import _complete_map_sets
+
+    scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
+    sphere.platelight.enabled = True
+    bpy.context.view_layer.objects.active = sphere
+    sphere.select_set(True)
+    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
+    assert bpy.ops.platelight.bake_probes(all_objects=True, force=True) == {"FINISHED"}
+    _complete_map_sets(scene, [sphere])
+    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
 
 
 def psnr(a, b, mask, peak):
@@ -215,7 +233,10 @@ def write_report(out_dir, rows):
         "median-cut, `lights_from_probe(mode='LIGHTS')`), the world only in reflections; "
         "*platelight sun+sky*: the probe's sun moved into a sharp sun lamp, the world shows the "
         "sun-less probe (`lights_from_probe(mode='SUN_SKY')`); *cycles catcher*: the world "
-        "(with its sun) lights everything. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
+        "(with its sun) lights everything and the CG is path-traced Principled. *platelight sbrdf*: "
+        "the CG is the PlateLight SBRDF (the Principled settings converted by `apply_sbrdf`) shaded "
+        "from its own probe (`bake_probes`, default 128×64 probe, 16 spp; the bake is in the time), "
+        "the floor's shadow as in *cycles catcher*. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
         "over the truth's shadow on the floor (>3 % darker than the plate), and over the frame. "
         "Time: lights + set-up + render + composite, on this 2-core machine shared with other jobs "
         "(so only comparable within one run). Produced by `tests/bench/bench_composite.py`.",
@@ -233,7 +254,7 @@ def write_report(out_dir, rows):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, title in ((axes[0], "psnr_object", "object"), (axes[1], "psnr_shadow", "shadowed floor")):
         for material, marker in zip(MATERIALS, "osD"):
-            for route, colour in zip(ROUTE_KEYS, ("tab:orange", "tab:green", "tab:blue")):
+            for route, colour in zip(ROUTE_KEYS, ("tab:red", "tab:orange", "tab:green", "tab:blue")):
                 pts = [(r["seconds"], r[key]) for r in rows if r["material"] == material and r["route"] == route]
                 if pts:
                     xs, ys = zip(*pts)

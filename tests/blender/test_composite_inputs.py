@@ -248,3 +248,35 @@ def test_sun_and_sky_needs_an_environment_texture(bpy_clean, studio_hdris):
     with pytest.raises(RuntimeError, match="Environment Texture"):
         bpy.ops.platelight.lights_from_probe(mode="SUN_SKY")
     assert "PlateLight Lights" not in bpy.data.collections
+
+
+def test_compositing_panel_draws_existing_operators(bpy_clean):
+    import importlib
+
+    import support
+
+    bpy = bpy_clean
+    panel_module = importlib.import_module(f"{support.EXT_MODULE}.addon.ui.composite_panel")
+    assert hasattr(bpy.types, "PLATELIGHT_PT_compositing")
+
+    class Recorder:
+        """Stands in for UILayout, which only Blender's window code can create."""
+        def __init__(self):
+            self.calls = []
+
+        def __getattr__(self, name):
+            def call(*args, **kwargs):
+                props = type("Props", (), {})()
+                self.calls.append((name, args, kwargs, props))
+                return self if name in {"column", "row"} else props if name == "operator" else None
+            return call
+
+    recorder = Recorder()
+    panel_module.PLATELIGHT_PT_compositing.draw(type("P", (), {"layout": recorder})(), bpy.context)
+    ops = [(args[0], vars(props)) for name, args, _, props in recorder.calls if name == "operator"]
+    assert len(ops) == 5
+    for idname, settings in ops:
+        op = getattr(bpy.ops, idname.split(".")[0])
+        rna = getattr(op, idname.split(".")[1]).get_rna_type()
+        for key, value in settings.items():  # every preset value is one the operator accepts
+            assert value in [item.identifier for item in rna.properties[key].enum_items]
