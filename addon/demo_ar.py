@@ -34,6 +34,7 @@ COMPOSITE_SAMPLES = 16
 # the footage's exposure (the camera's): applies to the plate and the CG alike
 FILM_EXPOSURE = 0.55
 EXT_MODULE = "bl_ext.dev.platelight"
+PROBE_SAMPLES = 64   # the bake's default 16 leaves sun fireflies on the floor in the probes
 SBRDF_PRESETS = {"CG Plaster Sphere": "marble", "CG Chrome Sphere": "chrome"}
 
 
@@ -211,6 +212,7 @@ def _apply_sbrdf_if_available(bpy, objects, timings, maps_dir):
         return False
     scene = bpy.context.scene
     scene.platelight.maps_dir = str(maps_dir)
+    scene.platelight.probe_samples = PROBE_SAMPLES
     # materials first: the bake writes only the maps the objects' materials read
     t0 = time.perf_counter()
     for ob in objects:

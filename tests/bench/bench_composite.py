@@ -41,6 +41,7 @@ ROUTES = (("platelight sbrdf", (1, 4, 16)), ("platelight lamps", (4, 16, 64)),
           ("platelight sun+sky", (4, 16, 64)), ("cycles catcher", (4, 16, 64, 192)))
 ROUTE_KEYS = {"platelight sbrdf": "sbrdf", "platelight lamps": "lamps", "platelight sun+sky": "sunsky",
               "cycles catcher": "cycles"}
+PROBE_SAMPLES = 128  # the bake default (16) leaves fireflies of the sun-lit floor in the probe
 SPHERE = (np.array([0.0, 0.0, 0.5]), 0.5)
 
 
@@ -150,6 +151,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path):
     from platelight.addon.demo_ar import _complete_map_sets
 
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
+    scene.platelight.probe_samples = PROBE_SAMPLES
     sphere.platelight.enabled = True
     bpy.context.view_layer.objects.active = sphere
     sphere.select_set(True)
