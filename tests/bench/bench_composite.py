@@ -41,7 +41,7 @@ ROUTES = (("platelight sbrdf", (1, 4, 16)), ("platelight lamps", (4, 16, 64)),
           ("platelight sun+sky", (4, 16, 64)), ("cycles catcher", (4, 16, 64, 192)))
 ROUTE_KEYS = {"platelight sbrdf": "sbrdf", "platelight lamps": "lamps", "platelight sun+sky": "sunsky",
               "cycles catcher": "cycles"}
-PROBE_SAMPLES = 128  # the bake default (16) leaves fireflies of the sun-lit floor in the probe
+PROBE_SAMPLES = 64
 SPHERE = (np.array([0.0, 0.0, 0.5]), 0.5)
 
 
@@ -148,7 +148,7 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path):
 def sbrdf_sphere(bpy, scene, sphere, out_path):
     """The paper's CG: the sphere's Principled settings converted to the PlateLight SBRDF, shaded
     from its own probe (baked from its centre: floor + world)."""
-    from platelight.addon.demo_ar import _complete_map_sets
+    from platelight.addon.demo_ar import _bake_probes, _complete_map_sets
 
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
     scene.platelight.probe_samples = PROBE_SAMPLES
@@ -156,7 +156,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path):
     bpy.context.view_layer.objects.active = sphere
     sphere.select_set(True)
     assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
-    assert bpy.ops.platelight.bake_probes(all_objects=True, force=True) == {"FINISHED"}
+    _bake_probes(bpy, [sphere], force=True)  # with the world's full importance map (see demo_ar)
     _complete_map_sets(scene, [sphere])
     assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
 
@@ -237,7 +237,7 @@ def write_report(out_dir, rows):
         "sun-less probe (`lights_from_probe(mode='SUN_SKY')`); *cycles catcher*: the world "
         "(with its sun) lights everything and the CG is path-traced Principled. *platelight sbrdf*: "
         "the CG is the PlateLight SBRDF (the Principled settings converted by `apply_sbrdf`) shaded "
-        "from its own probe (`bake_probes`, default 128×64 probe, 16 spp; the bake is in the time), "
+        "from its own probe (the bake's `ProbeBake`, default 128×64 probe, 64 spp, the world's full importance map; the bake is in the time), "
         "the floor's shadow as in *cycles catcher*. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
         "over the truth's shadow on the floor (>3 % darker than the plate), and over the frame. "
         "Time: lights + set-up + render + composite, on this 2-core machine shared with other jobs "
