@@ -37,15 +37,19 @@ def test_plate_unchanged_where_nothing_touches_it(bpy_clean, tmp_path, method):
     assert np.median(passes["Shadows"][..., 0][shadow & ~sphere_hit(origin, rays, margin=0.05)]) < 0.5
 
 
-@pytest.mark.parametrize("method,denoise", [("CATCHER", False), ("CATCHER", True), ("DIFFERENTIAL", True)])
-def test_plate_unchanged_wherever_render_says_untouched_full_light_paths(bpy_clean, tmp_path, method, denoise):
+@pytest.mark.parametrize("method,denoise,ratio", [("CATCHER", False, True), ("CATCHER", True, True),
+                                                  ("DIFFERENTIAL", True, True), ("DIFFERENTIAL", False, False)])
+def test_plate_unchanged_wherever_render_says_untouched_full_light_paths(bpy_clean, tmp_path, method, denoise,
+                                                                         ratio):
     """With every light path on (bounces, world light), each pixel that the CG does not reach
     (alpha 0 and shadow ratio exactly 1) is bit-exact, and that is most of the frame; the
     optional denoiser does not touch those pixels."""
     bpy = bpy_clean
     scene, plate = build_scene(bpy, tmp_path, method)
-    assert bpy.ops.platelight.setup_composite(method=method, samples=16, denoise_shadows=denoise) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(method=method, samples=16, denoise_shadows=denoise,
+                                              ratio_form=ratio) == {"FINISHED"}
     out, passes = render_with_passes(bpy, scene, tmp_path)
+    # Shadows is the ratio, or (With − Without) + 1 in the additive form: 1 means untouched
     free = (passes["CG"][..., 3] == 0) & np.all(passes["Shadows"][..., :3] == 1, axis=2)
     assert free.mean() > 0.6
     assert np.abs(out[..., :3] - plate)[free].max() <= 1e-6
@@ -71,7 +75,8 @@ def test_phantom_in_front_hides_cg(bpy_clean, tmp_path, method):
     np.testing.assert_allclose(out[..., :3][behind], plate[behind], rtol=0.05)
 
 
-def test_sun_shadow_falls_where_the_probe_sun_says(bpy_clean, tmp_path):
+@pytest.mark.parametrize("method", ["CATCHER", "DIFFERENTIAL"])
+def test_sun_shadow_falls_where_the_probe_sun_says(bpy_clean, tmp_path, method):
     """A probe with a small sun -> platelight.lights_from_probe -> the sphere's shadow on the
     phantom ground lies where the analytic shadow of that direction is."""
     bpy = bpy_clean
@@ -96,7 +101,7 @@ def test_sun_shadow_falls_where_the_probe_sun_says(bpy_clean, tmp_path):
     made_dir = np.array(sun.matrix_world.to_3x3() @ Vector((0, 0, 1)))
     assert math.degrees(math.acos(min(1.0, made_dir @ sun_dir))) < 0.5
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
-    assert bpy.ops.platelight.setup_composite(samples=8) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(method=method, samples=8) == {"FINISHED"}
     out, passes = render_with_passes(bpy, scene, tmp_path)
     ground, origin, rays = ground_points(bpy, scene)
     on_ground = np.isfinite(ground[..., 0]) & ~sphere_hit(origin, rays, margin=0.05)
