@@ -122,10 +122,10 @@ def render_target_frames(bpy, texture_png: str, extent_m, poses, out_dir, width=
 
 
 def render_mirror_ball(bpy, hdri_path: str, out_exr: str, size=256, samples=16,
-                       camera_to_world=None) -> dict:
+                       camera_to_world=None, ortho_scale=2.5, reflectance=0.8) -> dict:
     """A unit mirror sphere at the origin under ``hdri_path`` (Environment Texture, Blender's
-    lat-long convention), seen by an orthographic camera framing it exactly (ortho scale 2, so
-    the ball's outline is the inscribed circle of the square image). Float EXR, linear.
+    lat-long convention), seen by an orthographic camera (the ball's radius is
+    size/ortho_scale pixels) as a chrome of the given reflectance would be. Float EXR, linear.
     Returns the ball circle in OpenCV pixel coordinates and the camera matrix."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     scene = bpy.context.scene
@@ -149,13 +149,13 @@ def render_mirror_ball(bpy, hdri_path: str, out_exr: str, size=256, samples=16,
     mnt.nodes.clear()
     glossy = mnt.nodes.new("ShaderNodeBsdfGlossy")
     glossy.inputs["Roughness"].default_value = 0.0
-    glossy.inputs["Color"].default_value = (1, 1, 1, 1)
+    glossy.inputs["Color"].default_value = (reflectance, reflectance, reflectance, 1)
     mout = mnt.nodes.new("ShaderNodeOutputMaterial")
     mnt.links.new(glossy.outputs["BSDF"], mout.inputs["Surface"])
     ball.data.materials.append(mat)
     cam_data = bpy.data.cameras.new("cam")
     cam_data.type = "ORTHO"
-    cam_data.ortho_scale = 2.0
+    cam_data.ortho_scale = ortho_scale
     cam_data.clip_end = 100
     cam = bpy.data.objects.new("cam", cam_data)
     scene.collection.objects.link(cam)
@@ -170,7 +170,7 @@ def render_mirror_ball(bpy, hdri_path: str, out_exr: str, size=256, samples=16,
     scene.render.image_settings.color_mode = "RGB"
     scene.render.filepath = str(out_exr)
     bpy.ops.render.render(write_still=True)
-    return {"cx": (size - 1) / 2, "cy": (size - 1) / 2, "radius": size / 2,
+    return {"cx": (size - 1) / 2, "cy": (size - 1) / 2, "radius": size / ortho_scale,
             "camera_to_world": np.asarray(camera_to_world)}
 
 
