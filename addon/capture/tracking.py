@@ -19,11 +19,15 @@ import numpy as np
 from ..errors import PlateLightError
 
 # OpenCV camera (x right, y down, looks along +z) -> Blender camera (x right, y up, looks along -z)
+# FFmpeg's own log lines would follow our one-sentence errors on stderr (read when first used).
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 CV_TO_BLENDER_CAMERA = np.diag([1.0, -1.0, -1.0])
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr", ".webp")
 VIDEO_EXTENSIONS = (".mp4", ".mov", ".avi", ".mkv", ".m4v", ".webm", ".mpg", ".mpeg")
 # A marker whose side is shorter than this in the image decodes unreliably and poses badly.
 MIN_MARKER_SIDE_PX = 12.0
+# A marker's border ring must be this much darker (linear light, 0..1) than just outside it.
+MIN_BORDER_CONTRAST = 0.25
 _SRGB_TO_LINEAR = np.array([(v / 12.92) if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
                             for v in np.arange(256) / 255.0], dtype=np.float32) * 255.0
 
@@ -190,6 +194,15 @@ def _detector_parameters():
     return params
 
 
+def _nested_detector_parameters():
+    """Second pass: keep nested candidates. With a paper margin narrower than one bit, the
+    paper's edge decodes as the marker too (error correction) and wins over the real border."""
+    params = _detector_parameters()
+    params.minMarkerDistanceRate = 0.0
+    params.minGroupDistance = 0.0
+    return params
+
+
 def to_gray8(image: np.ndarray) -> np.ndarray:
     import cv2
 
@@ -214,6 +227,7 @@ class Tracker:
         self.target = target
         self.intrinsics = intrinsics
         self.detector = cv2.aruco.ArucoDetector(target.cv_dictionary, _detector_parameters())
+        self.nested_detector = cv2.aruco.ArucoDetector(target.cv_dictionary, _nested_detector_parameters())
         if isinstance(target, CharucoTarget):
             cparams = cv2.aruco.CharucoParameters()
             self.charuco = cv2.aruco.CharucoDetector(target.board, cparams, _detector_parameters())
@@ -238,23 +252,48 @@ class Tracker:
             obj, img = self.target.board.matchImagePoints(ch_corners, ch_ids)
             return Detection(self.target.board_to_world(obj), img.reshape(-1, 2).astype(np.float64),
                              "charuco", side_px=side)
-        corners, ids, rejected = self.detector.detectMarkers(gray)
-        if ids is None or len(ids) == 0:
-            return Detection(rejected=len(rejected))
-        ids = ids.reshape(-1)
-        choice = np.arange(len(ids))
-        if self.target.marker_id is not None:
-            choice = choice[ids == self.target.marker_id]
-            if len(choice) == 0:
+        det = Detection()
+        for detector in (self.detector, self.nested_detector):
+            corners, ids, rejected = detector.detectMarkers(gray)
+            if ids is None or len(ids) == 0:
                 return Detection(rejected=len(rejected))
-        # Several markers of the dictionary: the largest one in the image is the target.
-        sides = [_side_px(corners[i]) for i in choice]
-        best = int(choice[int(np.argmax(sides))])
-        side = max(sides)
-        if side < MIN_MARKER_SIDE_PX:
-            return Detection(too_small=True, side_px=side)
-        img = refine_quad_edges(gray, corners[best])
-        return Detection(self.target.corner_points(), img, "marker", side_px=side)
+            det = self._best_marker(gray, corners, ids, rejected)
+            if det.kind != "none" or det.too_small:
+                return det
+        return det
+
+    def _best_marker(self, gray, corners, ids, rejected) -> Detection:
+        ids = ids.reshape(-1)
+        wanted = ids if self.target.marker_id is None else ids[ids == self.target.marker_id]
+        if len(wanted) == 0:
+            return Detection(rejected=len(rejected))
+        cells = self.target.cv_dictionary.markerSize + 2
+        # The quad whose outer ring is black inside and bright outside is the marker's border,
+        # not the paper's edge or the inner edge of the border; several markers: the largest
+        # one is the target.
+        best, best_key, small = None, None, 0.0
+        for quad, marker in zip(corners, ids):
+            if marker not in wanted:
+                continue
+            if _side_px(quad) < MIN_MARKER_SIDE_PX:
+                small = max(small, _side_px(quad))
+                continue
+            refined = refine_quad_edges(gray, quad)
+            contrast = border_contrast(gray, refined, cells)
+            if contrast < MIN_BORDER_CONTRAST:
+                # Often the inner edge of the black border (JPEG-compressed frames): grow it
+                # by one bit on every side and look again.
+                refined = refine_quad_edges(gray, grow_quad(refined, 1.0 / (cells - 2)))
+                contrast = border_contrast(gray, refined, cells)
+            if contrast < MIN_BORDER_CONTRAST:
+                continue
+            if best_key is None or _side_px(refined) > best_key:
+                best, best_key = refined, _side_px(refined)
+        if best is None:
+            if small:
+                return Detection(too_small=True, side_px=small)
+            return Detection(rejected=len(rejected) + len(corners))
+        return Detection(self.target.corner_points(), best, "marker", side_px=best_key)
 
     def solve(self, det: Detection):
         """(rvec, tvec, rms reprojection px) of the world in OpenCV camera coordinates."""
@@ -629,9 +668,9 @@ def refine_quad_edges(gray: np.ndarray, quad: np.ndarray, reach_px: float = 3.0)
                 continue
             mid = 0.5 * (lo + hi)
             k = np.nonzero((p[:-1] < mid) & (p[1:] >= mid))[0]
-            if len(k) != 1:
+            if len(k) == 0:
                 continue
-            k = int(k[0])
+            k = int(k[np.argmin(np.abs(offsets[k]))])     # ringing: the crossing nearest the guess
             t = offsets[k] + (mid - p[k]) / (p[k + 1] - p[k]) * (offsets[k + 1] - offsets[k])
             found.append(base[j] + t * n)
         if len(found) < 4:
@@ -651,3 +690,39 @@ def refine_quad_edges(gray: np.ndarray, quad: np.ndarray, reach_px: float = 3.0)
     if np.max(np.linalg.norm(out - q, axis=1)) > reach:   # a fit that jumped away is not trusted
         return q
     return out
+
+
+def border_contrast(gray: np.ndarray, quad: np.ndarray, cells: int) -> float:
+    """Linear-light contrast between a thin ring just outside ``quad`` and the rings of the
+    marker's black border cells inside it (1 = white outside, black inside)."""
+    import cv2
+
+    lin = _SRGB_TO_LINEAR[np.asarray(gray, dtype=np.uint8)] / 255.0
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
+    hom = cv2.getPerspectiveTransform(square, np.asarray(quad, dtype=np.float32).reshape(4, 2))
+    t = np.linspace(0.1, 0.9, 24)
+    cell = 1.0 / cells
+
+    def ring(depth):
+        lo, hi = depth, 1 - depth
+        pts = np.concatenate([np.stack([t, np.full_like(t, lo)], 1), np.stack([t, np.full_like(t, hi)], 1),
+                              np.stack([np.full_like(t, lo), t], 1), np.stack([np.full_like(t, hi), t], 1)])
+        img_pts = cv2.perspectiveTransform(pts.reshape(-1, 1, 2).astype(np.float32), hom).reshape(-1, 2)
+        vals = cv2.remap(lin, img_pts[:, 0].reshape(1, -1), img_pts[:, 1].reshape(1, -1), cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REPLICATE)
+        return float(np.mean(vals))
+
+    # Both just inside the edge and mid-cell must be black: the paper's edge around a margin
+    # narrower than a bit has black mid-cell but white just inside.
+    return ring(-0.2 * cell) - max(ring(0.15 * cell), ring(0.5 * cell))
+
+
+def grow_quad(quad: np.ndarray, fraction: float) -> np.ndarray:
+    """The quad extended by ``fraction`` of its size on every side, in perspective."""
+    import cv2
+
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
+    hom = cv2.getPerspectiveTransform(square, np.asarray(quad, dtype=np.float32).reshape(4, 2))
+    grown = np.array([[-fraction, -fraction], [1 + fraction, -fraction], [1 + fraction, 1 + fraction],
+                      [-fraction, 1 + fraction]], dtype=np.float32)
+    return cv2.perspectiveTransform(grown.reshape(-1, 1, 2), hom).reshape(4, 2).astype(np.float64)
