@@ -134,7 +134,21 @@ def recover_response(images, times, samples: int = 200, smoothness: float = 10.0
 
     cal = cv2.createCalibrateDebevec(samples=samples, lambda_=smoothness, random=False)
     resp = cal.process(list(images), np.asarray(times, dtype=np.float32)).reshape(256, 3)
-    return resp.astype(np.float64)
+    return _extend_ends(resp.astype(np.float64))
+
+
+def _extend_ends(resp: np.ndarray, low: int = 16, high: int = 235) -> np.ndarray:
+    """Replace the ends of the curve, where the hat weights leave Debevec's solve nearly
+    unconstrained (measured: +25 % at value 250), by a power law fitted just inside them; the
+    clipping level's radiance (the lower bound of clipped light) is read there."""
+    out = resp.copy()
+    z = np.arange(256, dtype=np.float64)
+    for lo, hi, ends in ((low, low + 32, z < low), (high - 40, high, z > high)):
+        span = np.arange(lo, hi + 1)
+        for c in range(resp.shape[1]):
+            slope, icpt = np.polyfit(np.log(span), np.log(np.maximum(resp[span, c], 1e-12)), 1)
+            out[ends, c] = np.exp(icpt + slope * np.log(np.maximum(z[ends], 0.5)))
+    return out
 
 
 def merge_weights(z: np.ndarray) -> np.ndarray:

@@ -44,14 +44,21 @@ def find_ball(image: np.ndarray) -> Ball:
 
     img = np.asarray(image)
     if np.issubdtype(img.dtype, np.floating):
-        # HDR: log luminance, so the outline is found alike in bright and dark surroundings.
         lum = np.maximum(np.nan_to_num(img[..., :3] if img.ndim == 3 else img), 0)
         lum = lum.mean(axis=-1) if lum.ndim == 3 else lum
+        # Hough on log luminance (the outline shows in bright and dark surroundings alike)...
         log = np.log2(np.maximum(lum, np.percentile(lum, 1) + 1e-8))
         lo, hi = np.percentile(log, [1, 99.5])
         gray = np.clip((log - lo) / max(hi - lo, 1e-6) * 255.0, 0, 255).astype(np.float32)
+        # ...the sub-pixel edge in linear light, where a blurred step is symmetric (in log or
+        # gamma space its steepest point slides ~1 px towards the dark side).
+        linear = np.clip(lum / max(np.percentile(lum, 99), 1e-12), 0, 1.5).astype(np.float32) * 255.0
     else:
-        gray = to_gray8(img).astype(np.float32)
+        from .tracking import _SRGB_TO_LINEAR
+
+        gray8 = to_gray8(img)
+        gray = gray8.astype(np.float32)
+        linear = _SRGB_TO_LINEAR[gray8]
     h, w = gray.shape
     blur = cv2.GaussianBlur(gray, (0, 0), 1.5).astype(np.uint8)
     circles = cv2.HoughCircles(blur, cv2.HOUGH_GRADIENT_ALT, dp=1.5, minDist=min(h, w) / 4,
@@ -61,7 +68,7 @@ def find_ball(image: np.ndarray) -> Ball:
         raise PlateLightError("No mirror ball was found in the brackets; give its circle with --ball CX,CY,R.")
     # HOUGH_GRADIENT_ALT sorts by quality; take the best one and refine it.
     cx, cy, r = (float(v) for v in circles.reshape(-1, 3)[0])
-    return refine_circle(gray, Ball(cx, cy, r))
+    return refine_circle(linear, Ball(cx, cy, r))
 
 
 def refine_circle(gray: np.ndarray, ball: Ball, reach: float = 0.08) -> Ball:
@@ -86,11 +93,11 @@ def refine_circle(gray: np.ndarray, ball: Ball, reach: float = 0.08) -> Ball:
         if not np.all(np.isfinite(g)):
             continue
         strong = g > 0.35 * g.max()
-        if g.max() < 1.0 or not strong.any():
+        if g.max() < 0.5 or not strong.any():
             continue
-        k = int(np.nonzero(strong)[0][-1])              # outermost strong sample...
-        while k + 1 < len(g) and g[k + 1] >= g[k]:      # ...climbed to its local peak
-            k += 1
+        k = int(np.nonzero(strong)[0][-1])              # outermost strong sample (outer flank)...
+        while k > 0 and g[k - 1] >= g[k]:               # ...climbed inwards to its peak
+            k -= 1
         if 0 < k < len(g) - 1:
             den = g[k - 1] - 2 * g[k] + g[k + 1]
             frac = 0.5 * (g[k - 1] - g[k + 1]) / den if abs(den) > 1e-9 else 0.0
