@@ -37,11 +37,10 @@ def look_at(position, target=(0, 0, 0), roll_deg=0.0):
     return m
 
 
-def warp_target(texture, extent, camera_to_world, size=(W, H), f=F):
+def warp_target(texture, extent, camera_to_world, size=(W, H), f=F, ss=4, background=0.5):
     """Image of the printed target (texture covering extent + margin, centred, +Y up) seen by
     a pinhole camera: the plane's homography K [r1 r2 t] composed with texel -> plane metres.
     Supersampled 4x and area-averaged in linear light, like a camera's pixels."""
-    ss = 4
     k = np.array([[f * ss, 0, (size[0] * ss - 1) / 2], [0, f * ss, (size[1] * ss - 1) / 2], [0, 0, 1]])
     r, t = blender_to_cv_pose(camera_to_world)
     plane = k @ np.column_stack([r[:, 0], r[:, 1], t])
@@ -53,7 +52,7 @@ def warp_target(texture, extent, camera_to_world, size=(W, H), f=F):
     hom = plane @ tex_to_plane
     lin = (texture.astype(np.float32) / 255.0) ** 2.2
     big = cv2.warpPerspective(lin, hom, (size[0] * ss, size[1] * ss), flags=cv2.INTER_AREA,
-                              borderMode=cv2.BORDER_CONSTANT, borderValue=0.5)
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=background)
     small = big.reshape(size[1], ss, size[0], ss).mean(axis=(1, 3))
     return (np.clip(small, 0, 1) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
 

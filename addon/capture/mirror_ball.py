@@ -45,20 +45,26 @@ def find_ball(image: np.ndarray) -> Ball:
     img = np.asarray(image)
     if np.issubdtype(img.dtype, np.floating):
         lum = np.maximum(np.nan_to_num(img[..., :3] if img.ndim == 3 else img), 0)
-        lum = lum.mean(axis=-1) if lum.ndim == 3 else lum
+        lum = lum.mean(axis=-1, dtype=np.float32) if lum.ndim == 3 else lum.astype(np.float32)
+        few = lum[::4, ::4]                             # percentiles from a subsample: 16x faster
         # Hough on log luminance (the outline shows in bright and dark surroundings alike)...
-        log = np.log2(np.maximum(lum, np.percentile(lum, 1) + 1e-8))
-        lo, hi = np.percentile(log, [1, 99.5])
-        gray = np.clip((log - lo) / max(hi - lo, 1e-6) * 255.0, 0, 255).astype(np.float32)
+        floor = np.float32(np.percentile(few, 1) + 1e-8)
+        log = np.log2(np.maximum(lum, floor))
+        lo, hi = np.percentile(np.log2(np.maximum(few, floor)), [1, 99.5])
+        gray = np.clip((log - lo) * np.float32(255.0 / max(hi - lo, 1e-6)), 0, 255)
         # ...the sub-pixel edge in linear light, where a blurred step is symmetric (in log or
         # gamma space its steepest point slides ~1 px towards the dark side).
-        linear = np.clip(lum / max(np.percentile(lum, 99), 1e-12), 0, 1.5).astype(np.float32) * 255.0
+        linear = np.clip(lum * np.float32(255.0 / max(np.percentile(few, 99), 1e-12)), 0, 380)
     else:
         from .tracking import _SRGB_TO_LINEAR
 
         gray8 = to_gray8(img)
         gray = gray8.astype(np.float32)
         linear = _SRGB_TO_LINEAR[gray8]
+    # Hough on at most ~1000 px (the refinement below restores full-resolution accuracy).
+    shrink = max(1, int(np.ceil(max(gray.shape) / 1000)))
+    if shrink > 1:
+        gray = cv2.resize(gray, (gray.shape[1] // shrink, gray.shape[0] // shrink), interpolation=cv2.INTER_AREA)
     h, w = gray.shape
     blur = cv2.GaussianBlur(gray, (0, 0), 1.5).astype(np.uint8)
     circles = cv2.HoughCircles(blur, cv2.HOUGH_GRADIENT_ALT, dp=1.5, minDist=min(h, w) / 4,
@@ -68,6 +74,8 @@ def find_ball(image: np.ndarray) -> Ball:
         raise PlateLightError("No mirror ball was found in the brackets; give its circle with --ball CX,CY,R.")
     # HOUGH_GRADIENT_ALT sorts by quality; take the best one and refine it.
     cx, cy, r = (float(v) for v in circles.reshape(-1, 3)[0])
+    if shrink > 1:   # centre of a shrunk pixel -> full-resolution pixel coordinates
+        cx, cy, r = (cx + 0.5) * shrink - 0.5, (cy + 0.5) * shrink - 0.5, r * shrink
     return refine_circle(linear, Ball(cx, cy, r))
 
 

@@ -660,24 +660,20 @@ def refine_quad_edges(gray: np.ndarray, quad: np.ndarray, reach_px: float = 3.0)
         pts = base[:, None, :] + offsets[None, :, None] * n[None, None, :]
         prof = cv2.remap(img, pts[..., 0].astype(np.float32), pts[..., 1].astype(np.float32),
                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        found = []
-        for j in range(len(s)):
-            p = prof[j]
-            lo, hi = p[:3].mean(), p[-3:].mean()
-            if hi - lo < 20:                            # no clear dark-inside / bright-outside step
-                continue
-            mid = 0.5 * (lo + hi)
-            k = np.nonzero((p[:-1] < mid) & (p[1:] >= mid))[0]
-            if len(k) == 0:
-                continue
-            k = int(k[np.argmin(np.abs(offsets[k]))])     # ringing: the crossing nearest the guess
-            t = offsets[k] + (mid - p[k]) / (p[k + 1] - p[k]) * (offsets[k + 1] - offsets[k])
-            found.append(base[j] + t * n)
+        lo, hi = prof[:, :3].mean(axis=1), prof[:, -3:].mean(axis=1)
+        mid = 0.5 * (lo + hi)[:, None]
+        cross = (prof[:, :-1] < mid) & (prof[:, 1:] >= mid)
+        # ringing can cross twice: the crossing nearest the current edge wins
+        k = np.argmin(np.where(cross, np.abs(offsets[:-1])[None, :], np.inf), axis=1)
+        ok = (hi - lo >= 20) & cross.any(axis=1)       # a clear dark-inside / bright-outside step
+        rows = np.arange(len(s))
+        p0, p1 = prof[rows, k], prof[rows, k + 1]
+        t = offsets[k] + (mid[:, 0] - p0) / np.where(p1 != p0, p1 - p0, 1.0) * (offsets[1] - offsets[0])
+        found = (base + t[:, None] * n[None, :])[ok]
         if len(found) < 4:
             return q
-        f = np.asarray(found)
-        centre = f.mean(0)
-        _, _, vt = np.linalg.svd(f - centre)
+        centre = found.mean(0)
+        _, _, vt = np.linalg.svd(found - centre, full_matrices=False)
         lines.append((centre, vt[0]))
     out = np.empty((4, 2))
     for i in range(4):
