@@ -214,6 +214,11 @@ def test_probe_cli_contract(ball_files, tmp_path):
                            "--height", 32, "--rotate-z", 90)
     assert proc.returncode == 0, proc.stderr
     assert np.allclose(np.roll(probe, -16, axis=1), read_exr(out2), rtol=1e-4, atol=1e-6)
+    # per-channel response curves: same scene, within a percent or two of the shared curve
+    proc = support.run_cli("probe", *paths, "--exposures", "1/500,1/125,1/30,1/8", "--out", out2,
+                           "--height", 32, "--per-channel-response")
+    assert proc.returncode == 0, proc.stderr
+    assert np.median(np.abs(read_exr(out2) / probe - 1)) < 0.03
 
 
 def _cli_error(*args):

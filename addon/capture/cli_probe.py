@@ -54,6 +54,8 @@ def add_parser(sub) -> None:
     p.add_argument("--card-albedo", type=float, default=0.18, help="grey card albedo (default 0.18)")
     p.add_argument("--card-normal", type=_floats(3), metavar="X,Y,Z",
                    help="grey card normal in the probe's frame (default: towards the clipped light)")
+    p.add_argument("--per-channel-response", action="store_true",
+                   help="recover R, G, B response curves separately (default: one shared curve)")
     p.add_argument("--report", metavar="FILE.json", help="write the ball, response curve and warnings")
     p.set_defaults(func=run)
 
@@ -85,7 +87,8 @@ def run(args) -> int:
     result = make_probe(args.images, exposures=args.exposures,
                         ball=Ball(*args.ball) if args.ball else None, height=args.height,
                         camera_to_world=camera, rotate_z_deg=args.rotate_z, reflectance=args.reflectance,
-                        card_box=args.grey_card, card_albedo=args.card_albedo, card_normal=args.card_normal)
+                        card_box=args.grey_card, card_albedo=args.card_albedo, card_normal=args.card_normal,
+                        shared_response=not args.per_channel_response)
     write_exr(args.out, result.probe)
     if args.report:
         write_json_atomic(args.report, result.report())

@@ -33,7 +33,8 @@ class ProbeResult:
 
 def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, height: int = 256,
                camera_to_world=None, rotate_z_deg: float = 0.0, reflectance: float = 1.0,
-               card_box=None, card_albedo: float = 0.18, card_normal=None) -> ProbeResult:
+               card_box=None, card_albedo: float = 0.18, card_normal=None,
+               shared_response: bool = True) -> ProbeResult:
     """Brackets (files) -> probe. ``camera_to_world``: the photo camera's rotation in the
     scene's frame (e.g. from tracking a marker seen in the photo); ``rotate_z_deg`` then turns
     the probe about +Z (a user alignment). ``card_box`` = (x0, y0, x1, y1) pixels of a grey card
@@ -41,7 +42,7 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     if not (np.isfinite(reflectance) and 0 < reflectance <= 1):
         raise PlateLightError("The ball's reflectance must be in (0, 1].")
     images, times = hdr_merge.read_brackets(paths, exposures)
-    merged = hdr_merge.merge(images, times)
+    merged = hdr_merge.merge(images, times, shared_response=shared_response)
     if ball is None:
         ball = mirror_ball.find_ball(merged.radiance)
     rot = mirror_ball.default_camera_rotation() if camera_to_world is None else \
