@@ -611,7 +611,7 @@ def _ranges(frames: list[int]) -> str:
 
 
 def calibrate_from_detections(detections: list[Detection], size: tuple[int, int]):
-    """Intrinsics (k1, k2, p1, p2, k3 distortion) from ChArUco detections; (Intrinsics, rms px)."""
+    """Intrinsics (k1, k2 distortion) from ChArUco detections; (Intrinsics, rms px)."""
     import cv2
 
     usable = [d for d in detections if d.kind == "charuco" and len(d.object_points) >= 6]
@@ -620,7 +620,10 @@ def calibrate_from_detections(detections: list[Detection], size: tuple[int, int]
             f"Calibration needs the board in at least 3 frames with 6 corners each; found {len(usable)}.")
     obj = [d.object_points.astype(np.float32) for d in usable]
     img = [d.image_points.astype(np.float32).reshape(-1, 1, 2) for d in usable]
-    rms, k, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None)
+    # k3 and tangential terms overfit a handful of frames (6 Cycles frames: k3 = -11.9, cx off
+    # by 4.5 px); k1, k2 are enough for all but wide lenses.
+    flags = cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
+    rms, k, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None, flags=flags)
     return Intrinsics(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]),
                       tuple(float(v) for v in dist.reshape(-1))), float(rms)
 

@@ -82,8 +82,9 @@ def test_calibration_from_charuco_frames(filmed_target, bpy_module):
     from platelight.addon.capture.tracking import track
 
     result = track(folder / "frames", target, calibrate=True)
-    assert result.intrinsics.fx == pytest.approx(intrinsics["fx"], rel=0.02)
-    assert result.intrinsics.fy == pytest.approx(intrinsics["fy"], rel=0.02)
+    assert result.intrinsics.fx == pytest.approx(intrinsics["fx"], rel=0.005)
+    assert result.intrinsics.fy == pytest.approx(intrinsics["fy"], rel=0.005)
+    assert abs(result.intrinsics.cx - intrinsics["cx"]) < 2 and abs(result.intrinsics.cy - intrinsics["cy"]) < 2
     assert result.tracked_count == FRAMES
 
 
