@@ -31,17 +31,28 @@ def _target(kind):
     return MarkerTarget("DICT_4X4_50", 0.12), 0.5
 
 
-@pytest.fixture(scope="module", params=["marker", "charuco"])
-def filmed_target(request, bpy_module, tmp_path_factory):
-    kind = request.param
-    target, distance = _target(kind)
-    folder = tmp_path_factory.mktemp(f"track_{kind}")
-    texture = folder / "target.png"
-    write_target(texture, target, dpi=cr.PX_PER_M * 0.0254, margin_m=cr.MARGIN_M)
-    poses = cr.camera_path(FRAMES, distance)
-    intrinsics = cr.render_target_frames(bpy_module, texture, target.extent, poses, folder / "frames",
-                                         samples=16)
-    return kind, target, poses, intrinsics, folder
+@pytest.fixture(scope="module")
+def film(bpy_module, tmp_path_factory):
+    """film(kind) -> (kind, target, true poses, intrinsics, folder): rendered once per module."""
+    cache = {}
+
+    def render(kind):
+        if kind not in cache:
+            target, distance = _target(kind)
+            folder = tmp_path_factory.mktemp(f"track_{kind}")
+            texture = folder / "target.png"
+            write_target(texture, target, dpi=cr.PX_PER_M * 0.0254, margin_m=cr.MARGIN_M)
+            poses = cr.camera_path(FRAMES, distance)
+            intrinsics = cr.render_target_frames(bpy_module, texture, target.extent, poses,
+                                                 folder / "frames", samples=16)
+            cache[kind] = (kind, target, poses, intrinsics, folder)
+        return cache[kind]
+    return render
+
+
+@pytest.fixture(params=["marker", "charuco"])
+def filmed_target(request, film):
+    return film(request.param)
 
 
 def test_track_cli_recovers_blender_camera_path(filmed_target):
@@ -74,11 +85,9 @@ def test_track_cli_recovers_blender_camera_path(filmed_target):
     assert max(reproj) <= 0.5
 
 
-def test_calibration_from_charuco_frames(filmed_target, bpy_module):
+def test_calibration_from_charuco_frames(film):
     """Intrinsics calibrated from the ChArUco frames themselves match Blender's camera."""
-    kind, target, poses, intrinsics, folder = filmed_target
-    if kind != "charuco":
-        pytest.skip("calibration needs the ChArUco board")
+    kind, target, poses, intrinsics, folder = film("charuco")
     from platelight.addon.capture.tracking import track
 
     result = track(folder / "frames", target, calibrate=True)
