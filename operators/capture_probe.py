@@ -116,3 +116,15 @@ class PLATELIGHT_OT_capture_probe(bpy.types.Operator):
 
 
 classes = (PLATELIGHT_OT_capture_probe,)
+
+
+def _menu_entry(self, context):
+    self.layout.operator(PLATELIGHT_OT_capture_probe.bl_idname, text="Chrome Ball Brackets (PlateLight Probe)")
+
+
+def register_extra():
+    bpy.types.TOPBAR_MT_file_import.append(_menu_entry)
+
+
+def unregister_extra():
+    bpy.types.TOPBAR_MT_file_import.remove(_menu_entry)

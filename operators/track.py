@@ -185,3 +185,20 @@ class PLATELIGHT_OT_track_markers(bpy.types.Operator):
 
 
 classes = (PLATELIGHT_OT_track_markers,)
+
+
+def _menu_entry(self, context):
+    self.layout.operator(PLATELIGHT_OT_track_markers.bl_idname, text="PlateLight: Track Markers")
+
+
+_MENUS = ("CLIP_MT_track", "VIEW3D_MT_view_cameras")
+
+
+def register_extra():
+    for name in _MENUS:
+        getattr(bpy.types, name).append(_menu_entry)
+
+
+def unregister_extra():
+    for name in _MENUS:
+        getattr(bpy.types, name).remove(_menu_entry)
