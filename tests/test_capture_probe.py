@@ -253,3 +253,53 @@ def test_probe_bad_inputs(ball_files, tmp_path):
     assert "reaches outside the image" in _cli_error(*paths, "--exposures", times, "--ball", "150,80,40",
                                                      "--out", out)
     assert not out.exists()
+
+
+def test_probe_aligned_on_a_marker_seen_in_the_photos(tmp_path):
+    """A marker on the floor beside the ball gives the photo's camera rotation: the probe comes
+    out in the marker's frame although the camera looked down 40 deg and turned 25 deg."""
+    from platelight.addon.capture.boards import target_image
+    from platelight.addon.capture.tracking import MarkerTarget
+    from test_capture_tracking import warp_target
+
+    pitch, yaw = np.radians(-40), 25.0
+    rx = np.array([[1, 0, 0], [0, np.cos(pitch), -np.sin(pitch)], [0, np.sin(pitch), np.cos(pitch)]])
+    rot = mirror_ball.rotation_z(yaw) @ mirror_ball.default_camera_rotation() @ rx
+    size, f = (480, 320), 500.0
+    # the marker 0.3 m to the camera's right and 0.9 m ahead, seen through a pinhole of that rotation
+    camera = np.eye(4)
+    camera[:3, :3] = rot
+    camera[:3, 3] = -rot @ np.array([0.3, 0.0, -0.9])
+    target = MarkerTarget("DICT_4X4_50", 0.16)
+    tex = target_image(target, dpi=3000 * 0.0254, margin_m=0.02)
+    marker = (warp_target(tex, target.extent, camera, size=size, f=f, ss=2, background=0.3)
+              .astype(np.float32) / 255.0) ** 2.2
+    photo = np.repeat(marker[..., None], 3, axis=-1)
+    env = smooth_env(64)
+    ball = forward_ball(env, 200, 90.0, rot, background=0.3)
+    photo[60:260, 20:220] = ball                       # the ball (orthographic) on the left
+    paths = []
+    for i, img in enumerate(brackets(photo, TIMES, scale=2.0)):
+        paths.append(tmp_path / f"b{i}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    out = tmp_path / "aligned.exr"
+    proc = support.run_cli("probe", *paths, "--exposures", "1/500,1/125,1/30,1/8", "--out", out,
+                           "--height", 32, "--ball", "119.5,159.5,90", "--align-marker", 0.16,
+                           "--focal-px", f)
+    assert proc.returncode == 0, proc.stderr
+    probe = read_exr(out) * (128 / 255) ** 2.2 / 2.0
+    truth = downsample_area(env, 32)
+    mask = mirror_ball.view_angle_deg(32, rot) < 120
+    rel = np.abs(probe - truth).sum(-1) / truth.sum(-1)
+    assert np.median(rel[mask]) < 0.03
+    # without the marker the default (front view) orientation is wrong, and it shows
+    proc = support.run_cli("probe", *paths, "--exposures", "1/500,1/125,1/30,1/8", "--out", out,
+                           "--height", 32, "--ball", "119.5,159.5,90")
+    wrong = read_exr(out) * (128 / 255) ** 2.2 / 2.0
+    assert np.median((np.abs(wrong - truth).sum(-1) / truth.sum(-1))[mask]) > 0.1
+    msg = _cli_error(*paths, "--exposures", "1/500,1/125,1/30,1/8", "--out", out, "--ball", "119.5,159.5,90",
+                     "--align-marker", 0.16)
+    assert "needs the camera's focal length" in msg
+    msg = _cli_error(*paths, "--exposures", "1/500,1/125,1/30,1/8", "--out", out, "--ball", "119.5,159.5,90",
+                     "--align-marker", 0.16, "--focal-px", f, "--dictionary", "DICT_6X6_250")
+    assert "The alignment DICT_6X6_250 marker was not found in any bracket." in msg

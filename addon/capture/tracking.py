@@ -26,8 +26,8 @@ IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr", ".
 VIDEO_EXTENSIONS = (".mp4", ".mov", ".avi", ".mkv", ".m4v", ".webm", ".mpg", ".mpeg")
 # A marker whose side is shorter than this in the image decodes unreliably and poses badly.
 MIN_MARKER_SIDE_PX = 12.0
-# A marker's border ring must be this much darker (linear light, 0..1) than just outside it.
-MIN_BORDER_CONTRAST = 0.25
+# A marker's border ring must be this much darker (relative, linear light) than just outside it.
+MIN_BORDER_CONTRAST = 0.5
 _SRGB_TO_LINEAR = np.array([(v / 12.92) if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
                             for v in np.arange(256) / 255.0], dtype=np.float32) * 255.0
 
@@ -692,8 +692,8 @@ def refine_quad_edges(gray: np.ndarray, quad: np.ndarray, reach_px: float = 3.0)
 
 
 def border_contrast(gray: np.ndarray, quad: np.ndarray, cells: int) -> float:
-    """Linear-light contrast between a thin ring just outside ``quad`` and the rings of the
-    marker's black border cells inside it (1 = white outside, black inside)."""
+    """Relative linear-light contrast between a thin ring just outside ``quad`` and the rings of
+    the marker's black border cells inside it (1 = black inside, <= 0 = not darker)."""
     import cv2
 
     lin = _SRGB_TO_LINEAR[np.asarray(gray, dtype=np.uint8)] / 255.0
@@ -713,7 +713,9 @@ def border_contrast(gray: np.ndarray, quad: np.ndarray, cells: int) -> float:
 
     # Both just inside the edge and mid-cell must be black: the paper's edge around a margin
     # narrower than a bit has black mid-cell but white just inside.
-    return ring(-0.2 * cell) - max(ring(0.15 * cell), ring(0.5 * cell))
+    outside = ring(-0.2 * cell)
+    inside = max(ring(0.15 * cell), ring(0.5 * cell))
+    return (outside - inside) / max(outside, 1e-3)      # relative: dim exposures count alike
 
 
 def grow_quad(quad: np.ndarray, fraction: float) -> np.ndarray:
