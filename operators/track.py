@@ -124,8 +124,13 @@ class PLATELIGHT_OT_track_markers(bpy.types.Operator):
         intr = result.intrinsics
         scene.render.resolution_x, scene.render.resolution_y = width, height
         scene.render.resolution_percentage = 100
-        scene.render.pixel_aspect_x = 1.0
-        scene.render.pixel_aspect_y = intr.fy / intr.fx if intr.fx > 0 else 1.0
+        # Non-square pixels (fx != fy): Blender's pixel aspect is width/height of a pixel = fy/fx,
+        # and both of its fields must be >= 1. Calibrations within 0.5 % keep square pixels.
+        ratio = intr.fy / intr.fx
+        if abs(ratio - 1) < 0.005:
+            ratio = 1.0
+        scene.render.pixel_aspect_x = max(ratio, 1.0)
+        scene.render.pixel_aspect_y = max(1.0 / ratio, 1.0)
         cam = camera.data
         cam.type = "PERSP"
         cam.sensor_fit = "HORIZONTAL"

@@ -560,6 +560,9 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
         intrinsics = (Intrinsics.from_focal_px(focal_px, *size) if focal_px is not None
                       else Intrinsics.from_lens(lens_mm, sensor_width_mm, *size))
     tracker.intrinsics = intrinsics
+    if np.any(intrinsics.dist_array() != 0):
+        warnings.append("the poses use the calibrated lens distortion, which a Blender camera cannot "
+                        "represent: undistort the plate (e.g. a Movie Distortion node) before compositing")
 
     solved = {}
     for frame, det in found:

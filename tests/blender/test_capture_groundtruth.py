@@ -164,3 +164,29 @@ def test_probe_cli_recovers_hdri_and_response(ball_brackets, circle):
     rel = np.abs(response[z] / response[128] / known[:, None] - 1)
     print(f"response: max {rel.max():.4f}, median {np.median(rel):.4f}")
     assert np.median(rel) < 0.01 and rel.max() < 0.03
+
+
+def test_shifted_blender_camera_principal_point(bpy_module, tmp_path):
+    """A Blender camera with lens shift = an off-centre principal point: tracked with it, the path
+    is recovered; and the track operator turns it back into the same shift."""
+    target = MarkerTarget("DICT_4X4_50", 0.12)
+    write_target(tmp_path / "marker.png", target, dpi=cr.PX_PER_M * 0.0254, margin_m=cr.MARGIN_M)
+    poses = cr.camera_path(2, 0.5, seed=3)
+    shift = (0.03, -0.02)
+    intr = cr.render_target_frames(bpy_module, tmp_path / "marker.png", target.extent, poses,
+                                   tmp_path / "frames", samples=8, shift=shift)
+    assert (intr["cx"], intr["cy"]) == pytest.approx((300.3, 226.7))
+    calib = tmp_path / "calib.json"
+    calib.write_text(json.dumps({"intrinsics": intr}))
+    proc = support.run_cli("track", tmp_path / "frames", "--marker-size", 0.12, "--calibration", calib,
+                           "--out", tmp_path / "poses.json")
+    assert proc.returncode == 0, proc.stderr
+    frames = json.loads((tmp_path / "poses.json").read_text())["frames"]
+    for entry, truth in zip(frames, poses):
+        assert rotation_error_deg(np.array(entry["camera_to_world"]), truth) < 0.15
+    bpy = bpy_module
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    assert bpy.ops.platelight.track_markers(filepath=str(tmp_path / "frames"), marker_size=0.12,
+                                            calibration=str(calib), sensor_mm=36.0) == {"FINISHED"}
+    cam = bpy.context.scene.camera.data
+    assert (cam.shift_x, cam.shift_y) == pytest.approx(shift, abs=1e-9)

@@ -127,3 +127,21 @@ def test_capture_probe_failure_leaves_scene_unchanged(bpy_clean, ball_photos, tm
                                          exposures="1/500,1/125,1/30,1/8", ball="1,2")
     assert _scene_state(bpy) == before
     assert not (folder / "probe.exr").exists()
+
+
+def test_track_markers_calibration_sets_shift_and_pixel_aspect(bpy_clean, marker_clip, tmp_path):
+    """A calibrated principal point becomes the camera's shift; fx != fy a pixel aspect."""
+    import json
+
+    bpy = bpy_clean
+    frames, _ = marker_clip
+    f = 30.0 * 640 / 36
+    calib = tmp_path / "calib.json"
+    calib.write_text(json.dumps({"intrinsics": {"fx": f, "fy": 1.1 * f, "cx": 329.5, "cy": 229.5}}))
+    assert bpy.ops.platelight.track_markers(filepath=str(frames), marker_size=0.12, calibration=str(calib),
+                                            sensor_mm=36.0) == {"FINISHED"}
+    scene = bpy.context.scene
+    cam = scene.camera.data
+    assert cam.lens == pytest.approx(30.0)
+    assert cam.shift_x == pytest.approx(-10 / 640) and cam.shift_y == pytest.approx(-10 / 640)
+    assert scene.render.pixel_aspect_x == pytest.approx(1.1) and scene.render.pixel_aspect_y == 1.0
