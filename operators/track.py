@@ -16,7 +16,11 @@ _DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_5X5_50", "
 def _plate_path(context) -> str:
     """The active movie clip's file (the plate), if any."""
     clip = context.scene.active_clip or (bpy.data.movieclips[0] if bpy.data.movieclips else None)
-    return bpy.path.abspath(clip.filepath) if clip else ""
+    if clip is None:
+        return ""
+    path = bpy.path.abspath(clip.filepath)
+    # an image-sequence clip names its first image; the tracker takes the folder
+    return os.path.dirname(path) if clip.source == "SEQUENCE" else path
 
 
 def _clear_transform_keys(obj):

@@ -145,3 +145,15 @@ def test_track_markers_calibration_sets_shift_and_pixel_aspect(bpy_clean, marker
     assert cam.lens == pytest.approx(30.0)
     assert cam.shift_x == pytest.approx(-10 / 640) and cam.shift_y == pytest.approx(-10 / 640)
     assert scene.render.pixel_aspect_x == pytest.approx(1.1) and scene.render.pixel_aspect_y == 1.0
+
+
+def test_track_markers_defaults_to_the_active_movie_clip(bpy_clean, marker_clip):
+    bpy = bpy_clean
+    frames, poses = marker_clip
+    clip = bpy.data.movieclips.load(str(frames / "0001.png"))
+    bpy.context.scene.active_clip = clip
+    assert clip.source == "SEQUENCE"
+    assert bpy.ops.platelight.track_markers(marker_size=0.12, focal_mm=30.0, sensor_mm=36.0) == {"FINISHED"}
+    scene = bpy.context.scene
+    scene.frame_set(scene.frame_start + FRAMES - 1)
+    assert rotation_error_deg(np.array(scene.camera.matrix_world), poses[-1]) < 0.2
