@@ -306,3 +306,42 @@ def test_probe_aligned_on_a_marker_seen_in_the_photos(tmp_path):
     msg = _cli_error(*paths, "--exposures", "1/500,1/125,1/30,1/8", "--out", out, "--ball", "119.5,159.5,90",
                      "--align-marker", 0.16, "--focal-px", f, "--dictionary", "DICT_6X6_250")
     assert "The alignment DICT_6X6_250 marker was not found in any bracket." in msg
+
+
+def test_probe_cli_grey_card_repairs_a_clipped_sun(tmp_path):
+    """A sun clipped in every bracket and a grey card facing it in the same photos: the repaired
+    probe lights a surface facing the sun as the card was lit."""
+    import json
+
+    h = 64
+    env = smooth_env(h).astype(np.float64)
+    d = texel_directions(h, 2 * h)
+    sun_dir = np.array([0.3, -0.6, 0.74]) / np.linalg.norm([0.3, -0.6, 0.74])
+    env[d @ sun_dir > np.cos(np.radians(6))] = (3000.0, 2900.0, 2700.0)
+    cosine = np.clip(d @ sun_dir, 0, None) * texel_solid_angles(h, 2 * h)
+    irradiance = np.einsum("hw,hwc->c", cosine, env)
+    photo = np.full((200, 280, 3), 0.3, np.float32)
+    photo[:, :200] = forward_ball(env.astype(np.float32), 200, 90.0, mirror_ball.default_camera_rotation(),
+                                  background=0.3)
+    photo[20:60, 220:260] = 0.18 / np.pi * irradiance          # the card, facing the sun
+    paths = []
+    for i, img in enumerate(brackets(photo, TIMES, scale=2.0)):
+        paths.append(tmp_path / f"b{i}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    common = [*paths, "--exposures", "1/500,1/125,1/30,1/8", "--height", 64, "--ball", "99.5,99.5,90"]
+    out, report = tmp_path / "probe.exr", tmp_path / "r.json"
+    proc = support.run_cli("probe", *common, "--out", out, "--report", report)
+    assert proc.returncode == 0 and "clipped in every bracket" in proc.stderr
+    scale = (128 / 255) ** 2.2 / 2.0
+    lit = lambda probe: np.einsum("hw,hwc->c", cosine, probe.astype(np.float64) * scale)
+    before = lit(read_exr(out))
+    clipped = json.loads(report.read_text())["clipped"]
+    assert np.degrees(np.arccos(np.dot(clipped["direction"], sun_dir))) < 2
+    proc = support.run_cli("probe", *common, "--out", out, "--report", report, "--grey-card", "220,20,260,60")
+    assert proc.returncode == 0, proc.stderr
+    assert "repaired from the grey card" in proc.stderr
+    after = lit(read_exr(out))
+    print(f"irradiance / truth: clipped {before / irradiance}, repaired {after / irradiance}")
+    assert np.all(before < 0.5 * irradiance)
+    assert np.allclose(after, irradiance, rtol=0.03)
+    assert "not inside" in _cli_error(*common, "--out", out, "--grey-card", "270,20,300,60")
