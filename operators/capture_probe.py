@@ -40,6 +40,16 @@ class PLATELIGHT_OT_capture_probe(bpy.types.Operator):
     reflectance: FloatProperty(name="Ball Reflectance", default=1.0, min=0.01, max=1.0)
     rotate_z: FloatProperty(name="Rotation", description="Turn the probe about +Z to align it with the scene",
                             default=0.0, subtype="ANGLE")
+    grey_card: StringProperty(name="Grey Card", description="X0,Y0,X1,Y1 pixel box of a grey card in the "
+                              "photos: repairs light clipped in every bracket (e.g. the sun)", default="")
+    card_albedo: FloatProperty(name="Card Albedo", default=0.18, min=0.01, max=1.0)
+    align_marker_size: FloatProperty(name="Align Marker", description="Side of an ArUco marker (DICT_4X4_50) "
+                                     "seen in the photos to align the probe with (0: off)",
+                                     default=0.0, min=0.0, unit="LENGTH")
+    photo_focal_mm: FloatProperty(name="Photo Lens", description="Focal length of the ball photos (for alignment)",
+                                  default=50.0, min=1.0)
+    photo_sensor_mm: FloatProperty(name="Photo Sensor", description="Sensor width of the ball photos",
+                                   default=36.0, min=1.0)
     output: StringProperty(name="Probe File", description="Where the EXR goes (empty: probe.exr beside the brackets)",
                            default="", subtype="FILE_PATH")
 
@@ -73,9 +83,20 @@ class PLATELIGHT_OT_capture_probe(bpy.types.Operator):
         try:
             exposures = _numbers(self.exposures, "exposure times") if self.exposures.strip() else None
             ball = Ball(*_numbers(self.ball, "ball circle", 3)) if self.ball.strip() else None
+            card = _numbers(self.grey_card, "grey card box", 4) if self.grey_card.strip() else None
+            align, intrinsics = None, None
+            if self.align_marker_size > 0:
+                from ..addon.capture.tracking import Intrinsics, MarkerTarget, read_image
+
+                align = MarkerTarget("DICT_4X4_50", self.align_marker_size)
+                if os.path.isfile(paths[0]):
+                    h, w = read_image(paths[0]).shape[:2]
+                    intrinsics = Intrinsics.from_lens(self.photo_focal_mm, self.photo_sensor_mm, w, h)
             wm.progress_update(1)
             result = make_probe(sorted(paths), exposures=exposures, ball=ball, height=self.height,
-                                rotate_z_deg=math.degrees(self.rotate_z), reflectance=self.reflectance)
+                                rotate_z_deg=math.degrees(self.rotate_z), reflectance=self.reflectance,
+                                card_box=card, card_albedo=self.card_albedo, align_target=align,
+                                align_intrinsics=intrinsics)
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:

@@ -308,11 +308,10 @@ def test_probe_aligned_on_a_marker_seen_in_the_photos(tmp_path):
     assert "The alignment DICT_6X6_250 marker was not found in any bracket." in msg
 
 
-def test_probe_cli_grey_card_repairs_a_clipped_sun(tmp_path):
-    """A sun clipped in every bracket and a grey card facing it in the same photos: the repaired
-    probe lights a surface facing the sun as the card was lit."""
-    import json
-
+def sun_and_card_photos(folder):
+    """Brackets of a ball under a 6-degree sun clipped in all of them, with a grey card (albedo
+    0.18, facing the sun) at pixels (220, 20)-(260, 60). Returns the paths, the cosine weights
+    towards the sun per texel of a 64x128 probe and the true irradiance there."""
     h = 64
     env = smooth_env(h).astype(np.float64)
     d = texel_directions(h, 2 * h)
@@ -326,8 +325,17 @@ def test_probe_cli_grey_card_repairs_a_clipped_sun(tmp_path):
     photo[20:60, 220:260] = 0.18 / np.pi * irradiance          # the card, facing the sun
     paths = []
     for i, img in enumerate(brackets(photo, TIMES, scale=2.0)):
-        paths.append(tmp_path / f"b{i}.png")
+        paths.append(folder / f"b{i}.png")
         cv2.imwrite(str(paths[-1]), img)
+    return paths, cosine, irradiance, sun_dir
+
+
+def test_probe_cli_grey_card_repairs_a_clipped_sun(tmp_path):
+    """A sun clipped in every bracket and a grey card facing it in the same photos: the repaired
+    probe lights a surface facing the sun as the card was lit."""
+    import json
+
+    paths, cosine, irradiance, sun_dir = sun_and_card_photos(tmp_path)
     common = [*paths, "--exposures", "1/500,1/125,1/30,1/8", "--height", 64, "--ball", "99.5,99.5,90"]
     out, report = tmp_path / "probe.exr", tmp_path / "r.json"
     proc = support.run_cli("probe", *common, "--out", out, "--report", report)

@@ -157,3 +157,19 @@ def test_track_markers_defaults_to_the_active_movie_clip(bpy_clean, marker_clip)
     scene = bpy.context.scene
     scene.frame_set(scene.frame_start + FRAMES - 1)
     assert rotation_error_deg(np.array(scene.camera.matrix_world), poses[-1]) < 0.2
+
+
+def test_capture_probe_grey_card_repair(bpy_clean, tmp_path):
+    from test_capture_probe import sun_and_card_photos
+
+    bpy = bpy_clean
+    paths, cosine, irradiance, _ = sun_and_card_photos(tmp_path)
+    out = tmp_path / "repaired.exr"
+    assert bpy.ops.platelight.capture_probe(directory=str(tmp_path), files=[{"name": p.name} for p in paths],
+                                            exposures="1/500,1/125,1/30,1/8", height=64, ball="99.5,99.5,90",
+                                            grey_card="220,20,260,60", output=str(out)) == {"FINISHED"}
+    lit = np.einsum("hw,hwc->c", cosine, read_exr(out).astype(np.float64)) * (128 / 255) ** 2.2 / 2.0
+    assert np.allclose(lit, irradiance, rtol=0.03)
+    with pytest.raises(RuntimeError, match="grey card box needs 4"):
+        bpy.ops.platelight.capture_probe(directory=str(tmp_path), files=[{"name": p.name} for p in paths],
+                                         exposures="1/500,1/125,1/30,1/8", grey_card="1,2,3")
