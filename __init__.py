@@ -9,6 +9,7 @@ _BPY_MODULES = (
     "addon.ui.properties",
     "addon.ui.preferences",
     "operators",
+    "addon.ui.material_panel",
     "addon.ui.panels",
 )
 

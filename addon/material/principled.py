@@ -1,0 +1,94 @@
+"""Closest SBRDF parameters for a Principled BSDF and back (bpy-free maths).
+
+Mapping (documented in docs/sbrdf.md):
+- rho_d = base (1 - metallic);  rho_s = lerp(F0, base, metallic), F0 = ((ior-1)/(ior+1))^2 * 2 level
+- glossiness from roughness through the Phong exponent of each map: a GGX alpha = r^2 lobe is
+  closest to Phong s = 2/alpha^2 - 2, so the maps sit at r = (2/(s+2))^(1/4): specular r = 0,
+  glossy2 (s = 64) r = 0.418, glossy1 (s = 8) r = 0.669, diffuse (s = 1) r = 0.904; linear between.
+- Fresnel falloff phi = 1/6: Schlick's (1 - cos)^5 is f with 1/phi - 1 = 5.
+- alpha = principled alpha * (1 - transmission (1 - metallic)); IOR as is; emission as is.
+- anisotropy a: Cy = -(1 - 0.9 a) (Cx = -1), rotation 2 pi * anisotropic rotation.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .params import SBRDFParams
+
+SCHLICK_PHI = 1.0 / 6.0
+_ROUGHNESS_KNOTS = np.array([0.0, (2 / 66) ** 0.25, (2 / 10) ** 0.25, (2 / 3) ** 0.25])
+_GLOSS_KNOTS = np.array([1.0, 2 / 3, 1 / 3, 0.0])
+METAL_THRESHOLD = 0.2
+
+
+@dataclasses.dataclass
+class PrincipledValues:
+    base_color: tuple = (0.8, 0.8, 0.8)
+    metallic: float = 0.0
+    roughness: float = 0.5
+    ior: float = 1.5
+    specular_ior_level: float = 0.5
+    transmission: float = 0.0
+    alpha: float = 1.0
+    anisotropic: float = 0.0
+    anisotropic_rotation: float = 0.0
+    emission_color: tuple = (1.0, 1.0, 1.0)
+    emission_strength: float = 0.0
+
+
+def roughness_to_glossiness(roughness: float) -> float:
+    return float(np.interp(roughness, _ROUGHNESS_KNOTS, _GLOSS_KNOTS))
+
+
+def glossiness_to_roughness(glossiness: float) -> float:
+    return float(np.interp(glossiness, _GLOSS_KNOTS[::-1], _ROUGHNESS_KNOTS[::-1]))
+
+
+def _f0(ior: float, level: float) -> float:
+    return min(((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level, 1.0)
+
+
+def principled_to_sbrdf(p: PrincipledValues) -> SBRDFParams:
+    base = np.clip(np.asarray(p.base_color[:3], dtype=float), 0.0, 1.0)
+    metal = min(max(p.metallic, 0.0), 1.0)
+    f0 = _f0(max(p.ior, 1.0), p.specular_ior_level)
+    specular = (1.0 - metal) * f0 + metal * base
+    alpha = p.alpha * (1.0 - p.transmission * (1.0 - metal))
+    return SBRDFParams(
+        diffuse_albedo=tuple(float(c) for c in base * (1.0 - metal)),
+        specular_albedo=tuple(float(c) for c in specular),
+        glossiness=roughness_to_glossiness(p.roughness),
+        cx=-1.0, cy=-(1.0 - 0.9 * min(max(p.anisotropic, 0.0), 1.0)), cz=1.0,
+        fresnel_falloff=SCHLICK_PHI,
+        tangent_rotation=2.0 * math.pi * (p.anisotropic_rotation % 1.0),
+        emission_color=tuple(float(c) for c in p.emission_color[:3]),
+        emission_strength=float(p.emission_strength),
+        alpha=float(min(max(alpha, 0.0), 1.0)),
+        ior=float(max(p.ior, 1.0)),
+    ).clamped()
+
+
+def sbrdf_to_principled(s: SBRDFParams) -> PrincipledValues:
+    spec = np.asarray(s.specular_albedo, dtype=float)
+    diff = np.asarray(s.diffuse_albedo, dtype=float)
+    metal = 1.0 if spec.max() > METAL_THRESHOLD and spec.max() >= diff.max() else 0.0
+    if metal:
+        base, level = spec, 0.5
+    else:
+        base = diff
+        f0_ior = _f0(max(s.ior, 1.0), 0.5)
+        level = 0.5 * float(spec.mean()) / f0_ior if f0_ior > 0 else 0.5
+    transmission = 1.0 - s.alpha if not metal else 0.0
+    anis = (1.0 - min(abs(s.cy), abs(s.cx)) / max(abs(s.cx), abs(s.cy), 1e-9)) / 0.9
+    return PrincipledValues(
+        base_color=tuple(float(c) for c in base), metallic=metal,
+        roughness=glossiness_to_roughness(s.glossiness), ior=float(s.ior),
+        specular_ior_level=float(min(max(level, 0.0), 1.0)),
+        transmission=float(transmission), alpha=1.0 if transmission > 0 else float(s.alpha),
+        anisotropic=float(min(max(anis, 0.0), 1.0)),
+        anisotropic_rotation=float(s.tangent_rotation / (2.0 * math.pi)),
+        emission_color=tuple(s.emission_color), emission_strength=float(s.emission_strength),
+    )

@@ -1,0 +1,99 @@
+"""Tiny helpers that keep node-group builders readable: sockets by name, maths in one call,
+and in-place interface sync (so upgrading a group keeps the links and values in materials)."""
+from __future__ import annotations
+
+VERSION_KEY = "platelight_version"
+
+
+class Graph:
+    """Adds nodes to ``tree`` left to right; arguments may be sockets or constants."""
+
+    def __init__(self, tree):
+        self.tree = tree
+        self.column = 0
+
+    def node(self, idname, **props):
+        node = self.tree.nodes.new(idname)
+        for key, value in props.items():
+            setattr(node, key, value)
+        node.location = (200 * (self.column // 12), -160 * (self.column % 12))
+        self.column += 1
+        return node
+
+    def _feed(self, socket, value):
+        if hasattr(value, "is_output"):
+            self.tree.links.new(value, socket)
+        elif value is not None:
+            socket.default_value = value
+
+    def math(self, op, a, b=None, c=None, clamp=False):
+        node = self.node("ShaderNodeMath", operation=op, use_clamp=clamp)
+        for socket, value in zip(node.inputs, (a, b, c)):
+            self._feed(socket, value)
+        return node.outputs[0]
+
+    def vmath(self, op, a, b=None, scale=None):
+        node = self.node("ShaderNodeVectorMath", operation=op)
+        self._feed(node.inputs[0], a)
+        self._feed(node.inputs[1], b)
+        if scale is not None:
+            self._feed(node.inputs["Scale"], scale)
+        out = "Value" if op in ("DOT_PRODUCT", "LENGTH", "DISTANCE") else "Vector"
+        return node.outputs[out]
+
+    def mix(self, data_type, factor, a, b, blend="MIX"):
+        """Linear blend a -> b (vectors, colours or floats); MULTIPLY/ADD for colours."""
+        node = self.node("ShaderNodeMix", data_type=data_type)
+        if data_type == "RGBA":
+            node.blend_type = blend
+        sockets = [s for s in node.inputs if s.enabled]
+        self._feed(sockets[0], factor)
+        self._feed(sockets[1], a)
+        self._feed(sockets[2], b)
+        return next(s for s in node.outputs if s.enabled)
+
+    def color_op(self, blend, a, b):
+        return self.mix("RGBA", 1.0, a, b, blend=blend)
+
+    def link(self, src, dst):
+        self.tree.links.new(src, dst)
+
+
+def sync_interface(tree, sockets):
+    """Make the group's interface exactly ``sockets`` (in order), reusing items with the same name
+    and type so that links and values in existing materials survive an upgrade.
+
+    ``sockets``: (in_out, name, socket_type, options dict) tuples."""
+    wanted = {(io, name) for io, name, _, _ in sockets}
+    for item in list(tree.interface.items_tree):
+        if item.item_type != "SOCKET":
+            continue
+        key = (item.in_out, item.name)
+        spec = next((s for s in sockets if (s[0], s[1]) == key), None)
+        if key not in wanted or spec is None or item.socket_type != spec[2]:
+            tree.interface.remove(item)
+    for position, (io, name, socket_type, options) in enumerate(sockets):
+        item = next((i for i in tree.interface.items_tree
+                     if i.item_type == "SOCKET" and i.in_out == io and i.name == name), None)
+        if item is None:
+            item = tree.interface.new_socket(name, in_out=io, socket_type=socket_type)
+        for key, value in options.items():
+            setattr(item, key, value)
+    # Order: Blender keeps outputs before inputs; order each side as listed.
+    for io in ("OUTPUT", "INPUT"):
+        names = [name for side, name, _, _ in sockets if side == io]
+        for index, name in enumerate(names):
+            items = [i for i in tree.interface.items_tree
+                     if i.item_type == "SOCKET" and i.in_out == io]
+            item = next(i for i in items if i.name == name)
+            if items.index(item) != index:
+                offset = sum(1 for i in tree.interface.items_tree
+                             if i.item_type == "SOCKET" and i.in_out != io
+                             and i.position < items[0].position)
+                tree.interface.move(item, offset + index)
+
+
+def io_nodes(graph):
+    gin = graph.node("NodeGroupInput")
+    gout = graph.node("NodeGroupOutput")
+    return gin, gout

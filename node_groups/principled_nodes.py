@@ -1,0 +1,51 @@
+"""Read and write a material's Principled BSDF node as PrincipledValues (bpy glue)."""
+from __future__ import annotations
+
+import dataclasses
+
+from ..addon.material.principled import PrincipledValues
+
+# PrincipledValues field -> Principled BSDF input socket (Blender 4.x / 5.0 names).
+SOCKETS = {
+    "base_color": "Base Color", "metallic": "Metallic", "roughness": "Roughness", "ior": "IOR",
+    "specular_ior_level": "Specular IOR Level", "transmission": "Transmission Weight",
+    "alpha": "Alpha", "anisotropic": "Anisotropic",
+    "anisotropic_rotation": "Anisotropic Rotation", "emission_color": "Emission Color",
+    "emission_strength": "Emission Strength",
+}
+
+
+def principled_node(material):
+    if material is None or material.node_tree is None:
+        return None
+    return next((n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"),
+                None)
+
+
+def read_principled(material) -> PrincipledValues | None:
+    """The socket values of the material's Principled BSDF (None without one); a material
+    without nodes gives its viewport colour, metallic and roughness."""
+    node = principled_node(material)
+    if node is None:
+        if material is None:
+            return None
+        return PrincipledValues(base_color=tuple(material.diffuse_color[:3]),
+                                metallic=material.metallic, roughness=material.roughness)
+    values = {}
+    for field, socket in SOCKETS.items():
+        if socket in node.inputs:
+            value = node.inputs[socket].default_value
+            values[field] = tuple(value[:3]) if field.endswith("color") else float(value)
+    return PrincipledValues(**values)
+
+
+def build_principled_material(name: str, values: PrincipledValues):
+    import bpy
+
+    material = bpy.data.materials.new(name)
+    node = principled_node(material)
+    for field, value in dataclasses.asdict(values).items():
+        socket = SOCKETS[field]
+        if socket in node.inputs:
+            node.inputs[socket].default_value = (*value, 1.0) if field.endswith("color") else value
+    return material

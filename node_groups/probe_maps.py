@@ -1,0 +1,170 @@
+"""Per-probe map groups "PlateLight Probe <name>": the four maps of one probe folder, sampled along
+the directions that "PlateLight SBRDF" computes, summed into Lr and shown by an Emission shader.
+
+Images cannot travel through group sockets, so each probe folder gets its own small group holding
+Environment Texture nodes (bilinear); every material bound to that folder uses the same group, so a
+re-bake (images reloaded) or a switch to an image sequence updates all of them at once. The folder
+is stored on the group (custom property), which is how the binding finds it again.
+
+Glossiness n' in [0, 1] blends the maps with tent weights w_k = max(0, 1 - |3 n' - k|),
+k = 0..3 for diffuse, glossy1, glossy2, specular (design.md: linear between neighbours).
+"""
+from __future__ import annotations
+
+import os
+
+import bpy
+
+from ..addon.ibl.maps import MAP_NAMES, map_filename
+from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
+from .sbrdf import LOOKUP_SOCKETS
+
+GROUP_PREFIX = "PlateLight Probe "
+FOLDER_KEY = "platelight_probe_dir"
+VERSION = 1
+OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
+           ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
+           ("Refraction Term", "NodeSocketColor"))
+
+
+def find_probe_group(folder: str):
+    key = _folder_key(folder)
+    for tree in bpy.data.node_groups:
+        if tree.bl_idname == "ShaderNodeTree" and tree.get(FOLDER_KEY) == key:
+            return tree
+    return None
+
+
+def ensure_probe_group(folder: str, label: str | None = None):
+    """The probe group for ``folder`` (a Blender path, may start with //), built or upgraded in
+    place, with its images pointing at the folder's current maps (single file or sequence)."""
+    key = _folder_key(folder)
+    tree = find_probe_group(folder)
+    if tree is None:
+        label = label or os.path.basename(os.path.normpath(key)) or "World"
+        tree = bpy.data.node_groups.new(GROUP_PREFIX + label, "ShaderNodeTree")
+        tree[FOLDER_KEY] = key
+    if tree.get(VERSION_KEY) != VERSION or len(tree.nodes) <= 2:
+        sync_interface(tree, [("OUTPUT", n, t, {}) for n, t in OUTPUTS]
+                       + [("INPUT", n, t, {"hide_value": True}) for n, t in LOOKUP_SOCKETS])
+        tree.nodes.clear()
+        _build(tree)
+        tree[VERSION_KEY] = VERSION
+    bind_images(tree)
+    return tree
+
+
+def probe_maps_status(folder: str) -> tuple[str, int | None]:
+    """("single" | "sequence" | "missing", first frame or None) for the maps in ``folder``."""
+    path = bpy.path.abspath(folder) if folder else ""
+    if not path or not os.path.isdir(path):
+        return "missing", None
+    if all(os.path.isfile(os.path.join(path, map_filename(n))) for n in MAP_NAMES):
+        return "single", None
+    frames = sorted(int(f[len("diffuse_"):-4]) for f in os.listdir(path)
+                    if f.startswith("diffuse_") and f.endswith(".exr") and f[8:-4].isdigit())
+    if frames and all(os.path.isfile(os.path.join(path, map_filename(n, frames[0])))
+                      for n in MAP_NAMES):
+        return "sequence", frames[0]
+    return "missing", None
+
+
+def bind_images(tree):
+    """Point the group's Environment Texture nodes at the folder's maps (reloading them)."""
+    folder = tree[FOLDER_KEY]
+    kind, first = probe_maps_status(folder)
+    frames = _frame_count(folder, first) if kind == "sequence" else 1
+    for node in tree.nodes:
+        name = node.get("platelight_map")
+        if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
+            continue
+        if kind == "missing":
+            node.image = None
+            continue
+        filename = map_filename(name, first if kind == "sequence" else None)
+        image = _load_image(os.path.join(folder, filename), kind == "sequence")
+        node.image = image
+        if kind == "sequence":
+            user = node.image_user
+            user.frame_start = first
+            user.frame_offset = first - 1
+            user.frame_duration = frames
+            user.use_auto_refresh = True
+    tree["platelight_maps"] = kind
+
+
+def _load_image(filepath, sequence):
+    abspath = os.path.normpath(bpy.path.abspath(filepath))
+    for image in bpy.data.images:
+        if os.path.normpath(bpy.path.abspath(image.filepath)) == abspath:
+            image.source = "SEQUENCE" if sequence else "FILE"
+            image.reload()
+            return image
+    image = bpy.data.images.load(filepath, check_existing=False)
+    image.source = "SEQUENCE" if sequence else "FILE"
+    image.colorspace_settings.name = "Linear Rec.709"
+    return image
+
+
+def _frame_count(folder, first):
+    path = bpy.path.abspath(folder)
+    count = 0
+    while os.path.isfile(os.path.join(path, map_filename("diffuse", first + count))):
+        count += 1
+    return max(count, 1)
+
+
+def _folder_key(folder: str) -> str:
+    folder = folder or ""
+    return folder if folder.startswith("//") else os.path.normpath(os.path.abspath(folder))
+
+
+def _build(tree):
+    g = Graph(tree)
+    gin, gout = io_nodes(g)
+    inp = gin.outputs
+
+    def env(map_name, direction):
+        node = g.node("ShaderNodeTexEnvironment", interpolation="Linear")
+        node["platelight_map"] = map_name
+        g.link(direction, node.inputs["Vector"])
+        return node.outputs["Color"]
+
+    # Tent weights of the four maps from the (Fresnel-adjusted) glossiness n'.
+    scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", inp["Map Glossiness"], 0.0), 1.0), 3.0)
+    weights = [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
+                                        g.math("ABSOLUTE", g.math("SUBTRACT", scaled, float(k)))),
+                      0.0) for k in range(len(MAP_NAMES))]
+
+    def blended(direction):
+        total = None
+        for name, weight in zip(MAP_NAMES, weights):
+            term = g.vmath("SCALE", env(name, direction), scale=weight)
+            total = term if total is None else g.vmath("ADD", total, term)
+        return total
+
+    diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], env("diffuse", inp["Diffuse Direction"]))
+    specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(inp["Specular Direction"]))
+    channels = []
+    for index, channel in enumerate("RGB"):
+        sep = g.node("ShaderNodeSeparateColor")
+        g.link(blended(inp[f"Refraction Direction {channel}"]), sep.inputs["Color"])
+        channels.append(sep.outputs[index])
+    combine = g.node("ShaderNodeCombineColor")
+    for index, socket in enumerate(channels):
+        g.link(socket, combine.inputs[index])
+    refraction = g.vmath("MULTIPLY", inp["Refraction Weight"], combine.outputs["Color"])
+    lr = g.vmath("ADD", g.vmath("ADD", diffuse, specular),
+                 g.vmath("ADD", refraction, inp["Emission"]))
+    # Emission shows exactly Lr: the probe already holds the scene's light, so no BSDF here
+    # (a BSDF would add the lamps' and world's light a second time).
+    emit = g.node("ShaderNodeEmission")
+    g.link(lr, emit.inputs["Color"])
+    emit.inputs["Strength"].default_value = 1.0
+    g.link(emit.outputs["Emission"], gout.inputs["Shader"])
+    g.link(lr, gout.inputs["Lr"])
+    g.link(diffuse, gout.inputs["Diffuse Term"])
+    g.link(specular, gout.inputs["Specular Term"])
+    g.link(refraction, gout.inputs["Refraction Term"])
+    gin.location = (-400, 0)
+    gout.location = (200 * (g.column // 12 + 1), 0)

@@ -1,0 +1,152 @@
+"""Builder of the shader node group "PlateLight SBRDF": the paper's extended SBRDF (Eq 1-7).
+
+Shader group sockets cannot carry images, so the group does the *geometry* of Eq 1-7 (frame,
+Lafortune peak, Fresnel, falloff, refraction) and hands lookup directions and weights to the
+probe's own group ("PlateLight Probe <name>", node_groups/probe_maps.py), which samples the four
+maps and outputs the shader. The material wires the two together (operators/material.py).
+
+    R   = unit vector surface -> viewer, in the frame (T', B', N), T' = tangent rotated by theta
+    p   = Cx (R.T') T' + Cy (R.B') B' + Cz (R.N) N        blended towards R by Retro-Reflection
+    g   = max(0, N.p)                                     (clamped: a peak below the surface gets no light)
+    f   = (1 - clamp(R.N, 0, 1))^(1/phi - 1)              (phi clamped to >= 1e-4: finite at phi -> 0)
+    rho_s' = rho_s + (1 - rho_s) f,  n' = n + (1 - n) f,  g' = g + (1 - g) f
+    Lr  = alpha rho_d D(N) + rho_s' g' S(p/|p|, n') + (1 - alpha) rho_d (1 - rho_s') T(t, n') + E
+"""
+from __future__ import annotations
+
+import bpy
+
+from ..addon.material.params import PARAMETERS
+from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
+
+GROUP_NAME = "PlateLight SBRDF"
+# Bump when the group's internals or interface change: older groups are rebuilt in place.
+VERSION = 1
+PHI_MIN = 1.0e-4
+
+# The lookup outputs, consumed by name by every "PlateLight Probe" group.
+LOOKUP_SOCKETS = (
+    ("Diffuse Direction", "NodeSocketVector"),
+    ("Specular Direction", "NodeSocketVector"),
+    ("Map Glossiness", "NodeSocketFloat"),
+    ("Diffuse Weight", "NodeSocketColor"),
+    ("Specular Weight", "NodeSocketColor"),
+    ("Refraction Direction R", "NodeSocketVector"),
+    ("Refraction Direction G", "NodeSocketVector"),
+    ("Refraction Direction B", "NodeSocketVector"),
+    ("Refraction Weight", "NodeSocketColor"),
+    ("Emission", "NodeSocketColor"),
+)
+DEBUG_SOCKETS = (
+    ("Fresnel", "NodeSocketFloat"),
+    ("Falloff", "NodeSocketFloat"),
+)
+
+
+def _interface():
+    sockets = []
+    for name, socket_type in LOOKUP_SOCKETS + DEBUG_SOCKETS:
+        sockets.append(("OUTPUT", name, socket_type, {}))
+    for spec in PARAMETERS:
+        if spec.kind == "color":
+            options = {"default_value": (*spec.default, 1.0)}
+            sockets.append(("INPUT", spec.label, "NodeSocketColor", options))
+        else:
+            options = {"default_value": spec.default, "min_value": spec.minimum,
+                       "max_value": spec.maximum}
+            sockets.append(("INPUT", spec.label, "NodeSocketFloat", options))
+        sockets[-1][3]["description"] = spec.description
+    sockets.append(("INPUT", "Normal", "NodeSocketVector",
+                    {"hide_value": True, "default_value": (0.0, 0.0, 0.0),
+                     "description": "Shading normal (e.g. from a Normal Map node); "
+                                    "unconnected: the geometry normal"}))
+    return sockets
+
+
+def ensure_sbrdf_group():
+    """Return the "PlateLight SBRDF" group, building it or upgrading an older version in place."""
+    tree = bpy.data.node_groups.get(GROUP_NAME)
+    if tree is not None and tree.bl_idname != "ShaderNodeTree":
+        tree.name = GROUP_NAME + " (not a shader group)"
+        tree = None
+    if tree is None:
+        tree = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+    elif tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2:
+        return tree
+    sync_interface(tree, _interface())
+    tree.nodes.clear()
+    _build(tree)
+    tree[VERSION_KEY] = VERSION
+    return tree
+
+
+def _build(tree):
+    g = Graph(tree)
+    gin, gout = io_nodes(g)
+    geo = g.node("ShaderNodeNewGeometry")
+    inp = gin.outputs
+
+    # Shading normal: the Normal input when connected (non-zero), else the geometry normal.
+    use_input = g.math("GREATER_THAN", g.vmath("LENGTH", inp["Normal"]), 0.5)
+    n = g.vmath("NORMALIZE", g.mix("VECTOR", use_input, geo.outputs["Normal"], inp["Normal"]))
+    r = g.vmath("NORMALIZE", geo.outputs["Incoming"])
+
+    # Tangent frame: radial tangent around object Z, made orthogonal to N, then rotated by theta.
+    t0 = g.node("ShaderNodeTangent", direction_type="RADIAL", axis="Z").outputs["Tangent"]
+    t = g.vmath("NORMALIZE", g.vmath("SUBTRACT", t0,
+                                     g.vmath("SCALE", n, scale=g.vmath("DOT_PRODUCT", t0, n))))
+    b = g.vmath("CROSS_PRODUCT", n, t)
+    theta = inp["Tangent Rotation"]
+    t_rot = g.vmath("ADD", g.vmath("SCALE", t, scale=g.math("COSINE", theta)),
+                    g.vmath("SCALE", b, scale=g.math("SINE", theta)))
+    b_rot = g.vmath("CROSS_PRODUCT", n, t_rot)
+
+    # Lafortune peak p = diag(C) R in the local frame, back in world space (Eq 2).
+    rt = g.vmath("DOT_PRODUCT", r, t_rot)
+    rb = g.vmath("DOT_PRODUCT", r, b_rot)
+    rn = g.vmath("DOT_PRODUCT", r, n)
+    peak = g.vmath("ADD", g.vmath("ADD",
+                                  g.vmath("SCALE", t_rot, scale=g.math("MULTIPLY", inp["Cx"], rt)),
+                                  g.vmath("SCALE", b_rot, scale=g.math("MULTIPLY", inp["Cy"], rb))),
+                   g.vmath("SCALE", n, scale=g.math("MULTIPLY", inp["Cz"], rn)))
+    peak = g.mix("VECTOR", inp["Retro-Reflection"], peak, r)
+    falloff = g.math("MAXIMUM", g.vmath("DOT_PRODUCT", n, peak), 0.0)       # g (Eq 3)
+
+    # Parameterised Fresnel f (Eq 4) and its effect on rho_s, n and g (Eq 5-7).
+    cos_v = g.math("MINIMUM", g.math("MAXIMUM", rn, 0.0), 1.0)
+    phi = g.math("MAXIMUM", inp["Fresnel Falloff"], PHI_MIN)
+    exponent = g.math("SUBTRACT", g.math("DIVIDE", 1.0, phi), 1.0)
+    fresnel = g.math("POWER", g.math("SUBTRACT", 1.0, cos_v), exponent)
+    spec_albedo = g.mix("RGBA", fresnel, inp["Specular Albedo"], (1.0, 1.0, 1.0, 1.0))
+    gloss = g.math("ADD", inp["Glossiness"],
+                   g.math("MULTIPLY", g.math("SUBTRACT", 1.0, inp["Glossiness"]), fresnel))
+    falloff_f = g.math("ADD", falloff, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, falloff), fresnel))
+
+    # Weights of the terms.
+    alpha = inp["Alpha"]
+    diffuse_w = g.mix("RGBA", alpha, (0.0, 0.0, 0.0, 1.0), inp["Diffuse Albedo"])
+    specular_w = g.vmath("SCALE", spec_albedo, scale=falloff_f)   # g' may exceed 1 when Cz > 1
+    one_minus_spec = g.color_op("SUBTRACT", (1.0, 1.0, 1.0, 1.0), spec_albedo)
+    refr_w = g.mix("RGBA", g.math("SUBTRACT", 1.0, alpha), (0.0, 0.0, 0.0, 1.0),
+                   g.color_op("MULTIPLY", inp["Diffuse Albedo"], one_minus_spec))
+    emission = g.vmath("SCALE", inp["Emission Color"], scale=inp["Emission Strength"])
+
+    # Refraction at the front face, one IOR per channel (dispersion spreads them).
+    incident = g.vmath("SCALE", r, scale=-1.0)
+    for channel, sign in (("R", -1.0), ("G", 0.0), ("B", 1.0)):
+        ior = g.math("MULTIPLY_ADD", inp["Dispersion"], sign, inp["IOR"])
+        eta = g.math("DIVIDE", 1.0, g.math("MAXIMUM", ior, 1.0))
+        refracted = g.vmath("REFRACT", incident, n, scale=eta)
+        g.link(refracted, gout.inputs[f"Refraction Direction {channel}"])
+
+    g.link(n, gout.inputs["Diffuse Direction"])
+    g.link(g.vmath("NORMALIZE", peak), gout.inputs["Specular Direction"])
+    g.link(gloss, gout.inputs["Map Glossiness"])
+    g.link(diffuse_w, gout.inputs["Diffuse Weight"])
+    g.link(specular_w, gout.inputs["Specular Weight"])
+    g.link(refr_w, gout.inputs["Refraction Weight"])
+    g.link(emission, gout.inputs["Emission"])
+    g.link(fresnel, gout.inputs["Fresnel"])
+    g.link(falloff_f, gout.inputs["Falloff"])
+    gin.location = (-400, 0)
+    gout.location = (200 * (g.column // 12 + 1), 0)

@@ -1,0 +1,168 @@
+"""Materials that use the PlateLight SBRDF: build, bind to a probe, read and write parameters.
+
+A PlateLight material holds three nodes: the shared "PlateLight SBRDF" group (the parameters, as
+its socket values), the probe's "PlateLight Probe <name>" group (the maps) and the Material
+Output. ``apply_sbrdf_material(obj, preset)`` is the one call scripts need."""
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import bpy
+
+from ..addon.material.params import PARAMETERS, SBRDFParams
+from ..addon.material.presets import preset_params
+from . import probe_maps
+from .sbrdf import GROUP_NAME, LOOKUP_SOCKETS, ensure_sbrdf_group
+
+SBRDF_NODE = "PlateLight SBRDF"
+PROBE_NODE = "PlateLight Probe"
+WORLD_SUBDIR = "world"
+
+
+def sbrdf_node(material):
+    """The material's PlateLight SBRDF group node, or None."""
+    if material is None or material.node_tree is None:
+        return None
+    node = material.node_tree.nodes.get(SBRDF_NODE)
+    if node is not None and getattr(node, "node_tree", None) is not None \
+            and node.node_tree.name == GROUP_NAME:
+        return node
+    for node in material.node_tree.nodes:
+        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None \
+                and node.node_tree.name == GROUP_NAME:
+            return node
+    return None
+
+
+def probe_node(material):
+    if material is None or material.node_tree is None:
+        return None
+    return material.node_tree.nodes.get(PROBE_NODE)
+
+
+def read_params(material) -> SBRDFParams:
+    node = sbrdf_node(material)
+    values = {}
+    for spec in PARAMETERS:
+        value = node.inputs[spec.label].default_value
+        values[spec.name] = tuple(value[:3]) if spec.kind == "color" else float(value)
+    return SBRDFParams(**values)
+
+
+def write_params(material, params: SBRDFParams) -> None:
+    node = sbrdf_node(material)
+    params = params.clamped()
+    for spec in PARAMETERS:
+        value = getattr(params, spec.name)
+        node.inputs[spec.label].default_value = (*value, 1.0) if spec.kind == "color" else value
+
+
+def world_maps_dir(scene) -> str:
+    """Where the world probe's maps live: <scene maps folder>/world (fallback for objects
+    whose own maps are missing)."""
+    return os.path.join(scene.platelight.maps_dir or "//platelight_maps", WORLD_SUBDIR)
+
+
+def resolve_probe_dir(obj, scene) -> tuple[str, str]:
+    """(folder to bind, status sentence) for ``obj``: its own maps, else the world's."""
+    own = obj.platelight.probe_dir
+    kind, _ = probe_maps.probe_maps_status(own)
+    if kind != "missing":
+        return own, f"Probe maps: {kind} in {own}"
+    world = world_maps_dir(scene)
+    world_kind, _ = probe_maps.probe_maps_status(world)
+    if world_kind != "missing":
+        return world, f"Maps missing in '{own or '(no folder)'}': using the world maps"
+    return world, f"Maps missing in '{own or '(no folder)'}' and no world maps: renders black"
+
+
+def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | None = None):
+    """A new material shading with the SBRDF bound to the maps in ``probe_dir``."""
+    material = bpy.data.materials.new(name)
+    tree = material.node_tree
+    tree.nodes.clear()
+    group = tree.nodes.new("ShaderNodeGroup")
+    group.node_tree = ensure_sbrdf_group()
+    group.name = group.label = SBRDF_NODE
+    group.location = (-400, 0)
+    group.width = 240
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    material["platelight_sbrdf"] = 1
+    bind_probe(material, probe_dir, label)
+    write_params(material, params)
+    return material
+
+
+def bind_probe(material, probe_dir: str, label: str | None = None):
+    """Wire the material's SBRDF to the probe group of ``probe_dir`` (creating it if needed)."""
+    tree = material.node_tree
+    node = probe_node(material)
+    if node is None:
+        node = tree.nodes.new("ShaderNodeGroup")
+        node.name = node.label = PROBE_NODE
+        node.location = (0, 0)
+    node.node_tree = probe_maps.ensure_probe_group(probe_dir, label)
+    source = sbrdf_node(material)
+    for name, _ in LOOKUP_SOCKETS:
+        tree.links.new(source.outputs[name], node.inputs[name])
+    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    tree.links.new(node.outputs["Shader"], out.inputs["Surface"])
+    material["platelight_probe_dir"] = probe_dir
+    return node
+
+
+def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParams | None = None,
+                         scene=None):
+    """Give ``obj`` PlateLight SBRDF materials bound to its probe; returns the active one.
+
+    Existing SBRDF materials are rebound (and get the preset if given); other materials are
+    converted (Principled settings mapped where they can be) into new materials, the originals
+    kept with a fake user so nothing is lost."""
+    from ..addon.material.principled import principled_to_sbrdf
+    from .principled_nodes import read_principled
+
+    scene = scene or bpy.context.scene
+    folder, _status = resolve_probe_dir(obj, scene)
+    if preset_name is not None:
+        params = preset_params(preset_name)
+    if not obj.material_slots:
+        obj.data.materials.append(None)
+    result = None
+    for index, slot in enumerate(obj.material_slots):
+        material = slot.material
+        if sbrdf_node(material) is None:
+            base = params
+            if base is None:
+                principled = read_principled(material)
+                base = principled_to_sbrdf(principled) if principled else SBRDFParams()
+            name = f"{material.name} SBRDF" if material else f"{obj.name} SBRDF"
+            new = build_material(name, folder, base, label=obj.name)
+            if material is not None:
+                material.use_fake_user = True
+                new["platelight_source_material"] = material.name
+            slot.material = new
+            material = new
+        else:
+            bind_probe(material, folder, label=obj.name)
+            if params is not None:
+                write_params(material, params)
+        if index == obj.active_material_index:
+            result = material
+    return result or obj.material_slots[0].material
+
+
+def refresh_probe_maps():
+    """Reload every probe group's maps (after a bake, or when a folder switched to a sequence);
+    returns how many probe groups were refreshed."""
+    count = 0
+    for tree in bpy.data.node_groups:
+        if tree.bl_idname == "ShaderNodeTree" and probe_maps.FOLDER_KEY in tree:
+            probe_maps.bind_images(tree)
+            count += 1
+    return count
+
+
+def params_dict(params: SBRDFParams) -> dict:
+    return dataclasses.asdict(params)

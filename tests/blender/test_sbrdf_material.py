@@ -1,0 +1,319 @@
+"""apply_sbrdf, the binding to probe maps (single, sequence, missing), group versioning,
+presets, Principled conversion and JSON export/import inside Blender."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import sbrdf_scene as sc
+from platelight.addon.material.params import PARAMETERS
+from platelight.addon.material.presets import PRESETS, preset_label, preset_params
+
+
+def _sm():
+    from bl_ext.dev.platelight.node_groups import sbrdf_material
+    return sbrdf_material
+
+
+def _sphere(bpy, name="Ball"):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
+    ob = bpy.context.object
+    ob.name = name
+    return ob
+
+
+def _principled(bpy, name="Red"):
+    mat = bpy.data.materials.new(name)
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    node.inputs["Base Color"].default_value = (0.8, 0.1, 0.05, 1.0)
+    node.inputs["Roughness"].default_value = 0.0
+    node.inputs["Emission Strength"].default_value = 2.0
+    return mat
+
+
+def test_apply_sbrdf_converts_principled_and_binds_probe(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    sc.write_maps(tmp_path / "probe", sc.synthetic_maps())
+    ob = _sphere(bpy)
+    old = _principled(bpy)
+    ob.data.materials.append(old)
+    ob.platelight.probe_dir = str(tmp_path / "probe")
+    assert bpy.ops.platelight.apply_sbrdf() == {"FINISHED"}
+    mat = ob.active_material
+    sm = _sm()
+    node = sm.sbrdf_node(mat)
+    assert node is not None and mat is not old
+    assert old.use_fake_user and old.name in bpy.data.materials   # nothing lost
+    params = sm.read_params(mat)
+    assert params.diffuse_albedo == pytest.approx((0.8, 0.1, 0.05), abs=1e-6)
+    assert params.glossiness == pytest.approx(1.0)
+    assert params.emission_strength == pytest.approx(2.0)
+    probe = sm.probe_node(mat).node_tree
+    envs = [n for n in probe.nodes if n.bl_idname == "ShaderNodeTexEnvironment"]
+    assert len(envs) == 17 and all(n.image is not None for n in envs)
+    assert {n.image.name for n in envs} == {f"{m}.exr" for m in sc.MAP_HEIGHTS}
+    assert all(n.interpolation == "Linear" for n in envs)
+    surface = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    assert surface.inputs["Surface"].links[0].from_node == sm.probe_node(mat)
+    # Applying again rebinds, never duplicates groups or materials.
+    n_groups, n_mats = len(bpy.data.node_groups), len(bpy.data.materials)
+    assert bpy.ops.platelight.apply_sbrdf(preset="chrome") == {"FINISHED"}
+    assert (len(bpy.data.node_groups), len(bpy.data.materials)) == (n_groups, n_mats)
+    assert sm.read_params(ob.active_material).specular_albedo == pytest.approx((0.9,) * 3)
+
+
+def test_apply_sbrdf_poll_needs_an_object(bpy_clean):
+    bpy = bpy_clean
+    assert not bpy.ops.platelight.apply_sbrdf.poll()
+    with pytest.raises(RuntimeError, match="Select a mesh"):
+        bpy.ops.platelight.apply_sbrdf()
+
+
+def test_missing_maps_fall_back_to_world_maps(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    bpy.context.scene.platelight.maps_dir = str(tmp_path)
+    sc.write_maps(tmp_path / "world", sc.synthetic_maps(seed=3))
+    ob = _sphere(bpy)
+    ob.platelight.probe_dir = str(tmp_path / "not_baked")
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob)
+    folder, status = sm.resolve_probe_dir(ob, bpy.context.scene)
+    assert "using the world maps" in status
+    assert mat["platelight_probe_dir"] == folder
+    envs = [n for n in sm.probe_node(mat).node_tree.nodes
+            if n.bl_idname == "ShaderNodeTexEnvironment"]
+    assert all(n.image is not None and "world" in n.image.filepath for n in envs)
+    # Once the object's own maps exist, a refresh/apply binds them.
+    sc.write_maps(tmp_path / "not_baked", sc.synthetic_maps())
+    mat = sm.apply_sbrdf_material(ob)
+    assert mat["platelight_probe_dir"] == str(tmp_path / "not_baked")
+
+
+def test_image_sequence_maps(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    maps = sc.synthetic_maps()
+    for frame in (1, 2, 3):
+        sc.write_maps(tmp_path / "seq", {k: v * frame for k, v in maps.items()}, frame=frame)
+    ob = _sphere(bpy)
+    ob.platelight.probe_dir = str(tmp_path / "seq")
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob)
+    envs = [n for n in sm.probe_node(mat).node_tree.nodes
+            if n.bl_idname == "ShaderNodeTexEnvironment"]
+    assert all(n.image.source == "SEQUENCE" for n in envs)
+    assert all(n.image_user.frame_duration == 3 and n.image_user.use_auto_refresh for n in envs)
+    assert envs[0].image.filepath.endswith("_0001.exr")
+
+
+def test_group_is_idempotent_and_upgrades_in_place(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    from bl_ext.dev.platelight.node_groups import sbrdf
+
+    ob = _sphere(bpy)
+    ob.platelight.probe_dir = str(tmp_path)
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob, preset_name="plastic")
+    group = bpy.data.node_groups[sbrdf.GROUP_NAME]
+    assert sbrdf.ensure_sbrdf_group() == group
+    assert [g.name for g in bpy.data.node_groups].count(sbrdf.GROUP_NAME) == 1
+    labels = [i.name for i in group.interface.items_tree if i.in_out == "INPUT"]
+    for name in ("Diffuse Albedo", "Specular Albedo", "Glossiness", "Cx", "Cy", "Cz",
+                 "Fresnel Falloff", "Tangent Rotation", "Normal"):
+        assert name in labels
+    # An "old" group: older version, a node removed, a stale socket. Upgrading keeps the
+    # material's values and links.
+    group[sbrdf.VERSION_KEY] = 0
+    group.nodes.remove(group.nodes[5])
+    group.interface.new_socket("Obsolete", in_out="INPUT", socket_type="NodeSocketFloat")
+    n_nodes = len(group.nodes)
+    sbrdf.ensure_sbrdf_group()
+    assert group[sbrdf.VERSION_KEY] == sbrdf.VERSION and len(group.nodes) == n_nodes + 1
+    assert "Obsolete" not in [i.name for i in group.interface.items_tree]
+    assert sm.read_params(mat).diffuse_albedo == pytest.approx(PRESETS["plastic"]["diffuse_albedo"])
+    assert sm.probe_node(mat).inputs["Map Glossiness"].is_linked
+
+
+def test_socket_limits_match_parameter_ranges(bpy_clean):
+    from bl_ext.dev.platelight.node_groups import sbrdf
+
+    group = sbrdf.ensure_sbrdf_group()
+    items = {i.name: i for i in group.interface.items_tree if i.in_out == "INPUT"}
+    for spec in PARAMETERS:
+        if spec.kind == "float":
+            assert items[spec.label].min_value == pytest.approx(spec.minimum)
+            assert items[spec.label].max_value == pytest.approx(spec.maximum)
+
+
+def test_builtin_preset_files_match_presets(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    import os
+    from bl_ext.dev.platelight.operators.material import BUILTIN_PRESETS
+
+    ob = _sphere(bpy)
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob)
+    for name in PRESETS:
+        path = os.path.join(BUILTIN_PRESETS, preset_label(name) + ".py")
+        with bpy.context.temp_override(material=mat):
+            assert bpy.ops.script.execute_preset(
+                filepath=path, menu_idname="PLATELIGHT_MT_sbrdf_presets") == {"FINISHED"}
+        _close(sm.read_params(mat), preset_params(name))
+    with bpy.context.temp_override(material=mat):
+        assert bpy.ops.platelight.sbrdf_preset(preset="glass") == {"FINISHED"}
+    assert sm.read_params(mat).alpha == 0.0
+
+
+def _close(a, b):
+    for spec in PARAMETERS:
+        assert np.allclose(getattr(a, spec.name), getattr(b, spec.name), atol=1e-6), spec.name
+    return True
+
+
+def test_json_export_import_and_bad_files(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    ob = _sphere(bpy)
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob, preset_name="brushed_metal")
+    path = tmp_path / "brushed.json"
+    with bpy.context.temp_override(material=mat):
+        assert bpy.ops.platelight.sbrdf_export(filepath=str(path)) == {"FINISHED"}
+    data = json.loads(path.read_text())
+    assert data["format"] == "platelight-sbrdf" and data["parameters"]["cy"] == pytest.approx(-0.25)
+    sm.write_params(mat, preset_params("rubber"))
+    with bpy.context.temp_override(material=mat):
+        assert bpy.ops.platelight.sbrdf_import(filepath=str(path)) == {"FINISHED"}
+    _close(sm.read_params(mat), preset_params("brushed_metal"))
+    # Malformed and unknown-version files: a clear error, nothing changed.
+    bad = tmp_path / "bad.json"
+    for text in ("{not json", json.dumps(dict(data, version=99)),
+                 json.dumps(dict(data, parameters={"glossiness": "high"}))):
+        bad.write_text(text)
+        before = sm.read_params(mat)
+        with bpy.context.temp_override(material=mat):
+            with pytest.raises(RuntimeError, match="JSON|version 99|must be a number"):
+                bpy.ops.platelight.sbrdf_import(filepath=str(bad))
+        _close(sm.read_params(mat), before)
+
+
+def test_convert_to_principled_and_back(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    ob = _sphere(bpy)
+    sm = _sm()
+    sm.apply_sbrdf_material(ob, preset_name="chrome")
+    sbrdf_mat = ob.active_material
+    assert bpy.ops.platelight.sbrdf_to_principled() == {"FINISHED"}
+    mat = ob.active_material
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    assert node.inputs["Metallic"].default_value == 1.0
+    assert node.inputs["Roughness"].default_value == pytest.approx(0.0, abs=1e-6)
+    assert sbrdf_mat.use_fake_user
+    assert bpy.ops.platelight.apply_sbrdf() == {"FINISHED"}
+    back = sm.read_params(ob.active_material)
+    assert back.specular_albedo == pytest.approx((0.9, 0.9, 0.9), abs=1e-6)
+    assert back.glossiness == pytest.approx(1.0)
+
+
+def test_render_preset_row_leaves_the_scene_alone(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    from bl_ext.dev.platelight.node_groups.sbrdf_preview import render_preset_row
+
+    ob = _sphere(bpy, "UserObject")
+    before = (len(bpy.data.scenes), sorted(o.name for o in bpy.data.objects),
+              len(bpy.data.materials), bpy.context.scene.name)
+    out = render_preset_row(str(tmp_path / "row.png"), presets=["chrome", "plastic", "emissive"],
+                            sphere_px=24, samples=1)
+    after = (len(bpy.data.scenes), sorted(o.name for o in bpy.data.objects),
+             len(bpy.data.materials), bpy.context.scene.name)
+    assert before == after and ob.name in bpy.data.objects
+    image = bpy.data.images.load(out)
+    assert tuple(image.size) == (72, 24)
+    px = np.array(image.pixels[:]).reshape(24, 72, 4)[..., :3]
+    centres = [px[12, 12 + 24 * i] for i in range(3)]
+    assert centres[1][0] > 2 * centres[1][2]          # plastic is red
+    assert centres[2].min() > 0.8                      # emissive is bright
+    assert not np.allclose(centres[0], centres[1], atol=0.05)
+
+
+def test_user_preset_through_blenders_preset_system(bpy_clean):
+    bpy = bpy_clean
+    import os
+
+    assert hasattr(bpy.types, "PLATELIGHT_PT_material")
+    ob = _sphere(bpy)
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob, preset_name="marble")
+    with bpy.context.temp_override(material=mat):
+        assert bpy.ops.platelight.sbrdf_preset_add(name="My Marble") == {"FINISHED"}
+    path = next(os.path.join(d, "My_Marble.py") for d in bpy.utils.preset_paths("platelight_sbrdf")
+                if os.path.isfile(os.path.join(d, "My_Marble.py")))
+    sm.write_params(mat, preset_params("chrome"))
+    with bpy.context.temp_override(material=mat):
+        bpy.ops.script.execute_preset(filepath=path, menu_idname="PLATELIGHT_MT_sbrdf_presets")
+    _close(sm.read_params(mat), preset_params("marble"))
+
+
+def test_group_interface_order(bpy_clean):
+    from bl_ext.dev.platelight.node_groups import sbrdf
+
+    group = sbrdf.ensure_sbrdf_group()
+    inputs = [i.name for i in group.interface.items_tree if i.in_out == "INPUT"]
+    assert inputs == [spec.label for spec in PARAMETERS] + ["Normal"]
+    outputs = [i.name for i in group.interface.items_tree if i.in_out == "OUTPUT"]
+    assert outputs == [n for n, _ in sbrdf.LOOKUP_SOCKETS + sbrdf.DEBUG_SOCKETS]
+
+
+class _Layout:
+    """Records what a panel draws (headless Blender has no UI to draw into)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = False
+        self.active = True
+
+    def _child(self, *args, **kwargs):
+        return _Layout(self.log)
+
+    row = column = _child
+
+    def label(self, text="", icon="NONE"):
+        self.log.append(("label", text))
+
+    def prop(self, data, prop, text=""):
+        getattr(data, prop)                     # the property must exist
+        self.log.append(("prop", text))
+
+    def operator(self, idname, text="", icon="NONE"):
+        self.log.append(("operator", idname))
+        return type("Props", (), {})()
+
+    def menu(self, idname, text=""):
+        self.log.append(("menu", idname))
+
+    def template_preview(self, material):
+        self.log.append(("preview", material.name))
+
+
+def test_material_panel_draws(bpy_clean, tmp_path):
+    import types
+
+    bpy = bpy_clean
+    panel = bpy.types.PLATELIGHT_PT_material
+    ob = _sphere(bpy)
+    ob.data.materials.append(_principled(bpy))
+    log = []
+    context = types.SimpleNamespace(object=ob, material=ob.active_material)
+    panel.draw(types.SimpleNamespace(layout=_Layout(log)), context)
+    assert ("operator", "platelight.apply_sbrdf") in log
+
+    ob.platelight.probe_dir = str(tmp_path / "missing")
+    mat = _sm().apply_sbrdf_material(ob)
+    log.clear()
+    context = types.SimpleNamespace(object=ob, material=mat)
+    panel.draw(types.SimpleNamespace(layout=_Layout(log)), context)
+    drawn = [text for kind, text in log if kind == "prop"]
+    assert sorted(drawn) == sorted(spec.label for spec in PARAMETERS)
+    assert any(kind == "label" and "Maps missing" in text for kind, text in log)
+    assert ("menu", "PLATELIGHT_MT_sbrdf_presets") in log

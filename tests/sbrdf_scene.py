@@ -1,0 +1,124 @@
+"""Shared helpers for the SBRDF Blender tests: synthetic maps, a grid of spheres seen by an
+orthographic camera, and a float render read back (no PlateLight code involved here)."""
+from __future__ import annotations
+
+import math
+import pathlib
+
+import numpy as np
+
+from platelight.addon.exr_io import read_exr, write_exr
+
+MAP_HEIGHTS = {"diffuse": 16, "glossy1": 32, "glossy2": 64, "specular": 128}
+VIEW = np.array([0.0, -1.0, 0.0])     # surface -> viewer for a camera looking along +Y
+
+
+def synthetic_maps(seed: int = 0) -> dict:
+    """Four maps with a different smooth pattern each, plus texel noise (so a wrong lookup
+    direction, map or blend weight shows), all values in [0.15, 1.3]."""
+    rng = np.random.default_rng(seed)
+    maps = {}
+    for k, (name, h) in enumerate(MAP_HEIGHTS.items()):
+        w = 2 * h
+        u = (np.arange(w) + 0.5) / w
+        v = 1.0 - (np.arange(h) + 0.5) / h
+        az = 2 * np.pi * (u - 0.5)
+        el = np.pi * (v - 0.5)
+        A, E = np.meshgrid(az, el)
+        img = np.empty((h, w, 3), np.float32)
+        img[..., 0] = 0.7 + 0.3 * np.sin((k + 1) * A + 0.5 * k) * np.cos(E)
+        img[..., 1] = 0.7 + 0.3 * np.cos(2 * E + k) * np.cos(A)
+        img[..., 2] = 0.7 + 0.3 * np.sin(3 * A - k) * np.sin(E + 0.3)
+        img += rng.uniform(-0.1, 0.1, img.shape).astype(np.float32)
+        img *= 1.0 + 0.15 * k
+        maps[name] = img
+    return maps
+
+
+def write_maps(folder: pathlib.Path, maps: dict, frame: int | None = None) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, img in maps.items():
+        fname = f"{name}.exr" if frame is None else f"{name}_{frame:04d}.exr"
+        write_exr(folder / fname, img)
+
+
+def setup_scene(bpy, count: int, size: int = 48):
+    """``count`` unit spheres in a row-major grid, an orthographic camera along +Y; returns the
+    sphere objects and the (columns, rows) of the grid."""
+    cols = min(count, 4)
+    rows = math.ceil(count / cols)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = 1
+    scene.cycles.use_denoising = False
+    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = 0.01
+    scene.cycles.max_bounces = 0
+    scene.render.film_transparent = True
+    scene.render.resolution_x = cols * size
+    scene.render.resolution_y = rows * size
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_mode = "RGBA"
+    settings.color_depth = "32"
+    cam_data = bpy.data.cameras.new("Cam")
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = 2.2 * cols
+    cam = bpy.data.objects.new("Cam", cam_data)
+    cam.location = (0.0, -10.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    spheres = []
+    for i in range(count):
+        r, c = divmod(i, cols)
+        bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.0,
+                                             location=(2.2 * (c - (cols - 1) / 2), 0.0,
+                                                       2.2 * ((rows - 1) / 2 - r)))
+        ob = bpy.context.object
+        ob.name = f"Sphere{i}"
+        bpy.ops.object.shade_smooth()
+        spheres.append(ob)
+    return spheres, (cols, rows)
+
+
+def render(bpy, path: pathlib.Path) -> np.ndarray:
+    scene = bpy.context.scene
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    return read_exr(path, "RGBA")
+
+
+def position_material(bpy):
+    """Emission showing object coordinates as 0.25 * P + 0.5 (to read P back per pixel)."""
+    mat = bpy.data.materials.new("PositionPass")
+    nt = mat.node_tree
+    nt.nodes.clear()
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    vm = nt.nodes.new("ShaderNodeVectorMath")
+    vm.operation = "MULTIPLY_ADD"
+    vm.inputs[1].default_value = (0.25, 0.25, 0.25)
+    vm.inputs[2].default_value = (0.5, 0.5, 0.5)
+    em = nt.nodes.new("ShaderNodeEmission")
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(tc.outputs["Object"], vm.inputs[0])
+    nt.links.new(vm.outputs[0], em.inputs["Color"])
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def interior_mask(alpha: np.ndarray) -> np.ndarray:
+    """Pixels fully covered and whose 8 neighbours are too (away from silhouettes)."""
+    full = alpha >= 0.9999
+    m = full.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            m &= np.roll(np.roll(full, dy, 0), dx, 1)
+    m[0, :] = m[-1, :] = m[:, 0] = m[:, -1] = False
+    return m

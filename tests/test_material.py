@@ -1,0 +1,121 @@
+"""bpy-free material code: parameter ranges, JSON files (round trip and every bad input),
+Principled conversion, presets and the shipped preset files."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+
+import pytest
+
+import support  # noqa: F401  (makes `platelight` this checkout)
+from platelight.addon.errors import PlateLightError
+from platelight.addon.material import json_io, principled, presets
+from platelight.addon.material.params import PARAMETERS, SBRDFParams
+
+REPO = pathlib.Path(support.REPO)
+
+
+def test_defaults_and_clamping():
+    p = SBRDFParams(glossiness=3.0, fresnel_falloff=-1.0, diffuse_albedo=(2.0, -1.0, 0.5),
+                    tangent_rotation=100.0).clamped()
+    assert p.glossiness == 1.0 and p.fresnel_falloff == 0.0
+    assert p.diffuse_albedo == (1.0, 0.0, 0.5)
+    assert p.tangent_rotation == pytest.approx(2 * math.pi)
+    assert {s.name for s in PARAMETERS} == {f.name for f in dataclasses.fields(SBRDFParams)}
+
+
+def test_json_round_trip(tmp_path):
+    p = presets.preset_params("brushed_metal")
+    json_io.save_params(tmp_path / "m.json", p, "Brushed")
+    back, name = json_io.load_params(tmp_path / "m.json")
+    assert name == "Brushed" and back == p.clamped()
+
+
+def _doc(**overrides):
+    doc = json.loads(json_io.params_to_json(SBRDFParams()))
+    doc.update(overrides)
+    return json.dumps(doc)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("{oops", "not valid JSON"),
+    ("[1, 2]", "not a PlateLight SBRDF material"),
+    (json.dumps({"format": "something-else", "version": 1}), "not a PlateLight SBRDF material"),
+    (_doc(version=2), "version 2"),
+    (_doc(version="1"), "no valid \"version\""),
+    (_doc(parameters=[1]), "no \"parameters\""),
+    (_doc(parameters={"shininess": 3}), "Unknown SBRDF parameter 'shininess'"),
+    (_doc(parameters={"glossiness": "high"}), "glossiness must be a number"),
+    (_doc(parameters={"glossiness": float("nan")}), "glossiness must be a number"),
+    (_doc(parameters={"diffuse_albedo": [1, 2]}), "three numbers"),
+])
+def test_json_bad_input(text, message):
+    with pytest.raises(PlateLightError, match=message):
+        json_io.params_from_json(text)
+
+
+def test_json_missing_file_and_partial_parameters(tmp_path):
+    with pytest.raises(PlateLightError, match="File not found"):
+        json_io.load_params(tmp_path / "nope.json")
+    (tmp_path / "p.json").write_text(json.dumps(
+        {"format": "platelight-sbrdf", "version": 1, "parameters": {"glossiness": 7}}))
+    p, _ = json_io.load_params(tmp_path / "p.json")
+    assert p.glossiness == 1.0 and p.cx == SBRDFParams().cx      # clamped, defaults kept
+
+
+def test_roughness_glossiness_knots():
+    # The maps' Phong exponents (s = 64 for glossy2, 8 for glossy1) through alpha = r^2,
+    # s = 2 / alpha^2 - 2.
+    for s, n in ((64, 2 / 3), (8, 1 / 3)):
+        r = (2 / (s + 2)) ** 0.25
+        assert principled.roughness_to_glossiness(r) == pytest.approx(n)
+        assert principled.glossiness_to_roughness(n) == pytest.approx(r)
+    assert principled.roughness_to_glossiness(0.0) == 1.0
+    assert principled.roughness_to_glossiness(1.0) == 0.0
+
+
+@pytest.mark.parametrize("values", [
+    principled.PrincipledValues(base_color=(0.9, 0.2, 0.1), metallic=0.0, roughness=0.3),
+    principled.PrincipledValues(base_color=(0.95, 0.64, 0.54), metallic=1.0, roughness=0.1),
+    principled.PrincipledValues(base_color=(1, 1, 1), transmission=1.0, roughness=0.0, ior=1.45),
+    principled.PrincipledValues(emission_color=(1, 0.5, 0.2), emission_strength=5.0),
+])
+def test_principled_round_trip(values):
+    s = principled.principled_to_sbrdf(values)
+    back = principled.sbrdf_to_principled(s)
+    assert back.base_color == pytest.approx(values.base_color, abs=1e-6)
+    assert back.metallic == values.metallic
+    assert back.roughness == pytest.approx(values.roughness, abs=1e-6)
+    assert back.transmission == pytest.approx(values.transmission)
+    assert back.ior == pytest.approx(values.ior)
+    assert back.emission_strength == values.emission_strength
+
+
+def test_principled_mapping_values():
+    s = principled.principled_to_sbrdf(principled.PrincipledValues(
+        base_color=(0.5, 0.5, 0.5), metallic=0.0, ior=1.5, specular_ior_level=0.5))
+    assert s.specular_albedo == pytest.approx((0.04,) * 3)         # F0 of IOR 1.5
+    assert s.diffuse_albedo == pytest.approx((0.5,) * 3)
+    assert 1 / s.fresnel_falloff - 1 == pytest.approx(5.0)         # Schlick's exponent
+    metal = principled.principled_to_sbrdf(principled.PrincipledValues(
+        base_color=(0.9, 0.6, 0.2), metallic=1.0))
+    assert metal.diffuse_albedo == (0.0, 0.0, 0.0)
+    assert metal.specular_albedo == pytest.approx((0.9, 0.6, 0.2))
+
+
+def test_presets_cover_the_paper_and_files_are_current(tmp_path):
+    assert set(presets.PRESETS) == {"chrome", "brushed_metal", "glass", "plastic", "rubber",
+                                    "polished_paint", "marble", "emissive"}
+    bm = presets.preset_params("brushed_metal")
+    assert abs(bm.cx) != abs(bm.cy)                   # anisotropic
+    assert presets.preset_params("glass").alpha == 0.0
+    assert presets.preset_params("emissive").emission_strength > 1.0
+    with pytest.raises(PlateLightError, match="Unknown SBRDF preset"):
+        presets.preset_params("velvet")
+    # The shipped preset scripts are generated from PRESETS and must not drift.
+    written = presets.write_preset_files(tmp_path)
+    for path in map(pathlib.Path, written):
+        shipped = REPO / "presets" / presets.PRESET_SUBDIR / path.name
+        assert shipped.read_text() == path.read_text(), f"regenerate {shipped.name}"
