@@ -63,15 +63,14 @@ def _tiff_exposure_time(tiff: bytes) -> float | None:
             yield tag, typ, n, e + 8
 
     ifd0 = struct.unpack(end + "I", tiff[4:8])[0]
-    for ifd in (ifd0,):
-        for tag, typ, n, vpos in entries(ifd):
-            if tag == 0x829A and typ == 5:
-                return _rational(tiff, end, vpos)
-            if tag == 0x8769:
-                exif = struct.unpack(end + "I", tiff[vpos:vpos + 4])[0]
-                for tag2, typ2, n2, vpos2 in entries(exif):
-                    if tag2 == 0x829A and typ2 == 5:
-                        return _rational(tiff, end, vpos2)
+    for tag, typ, _, vpos in entries(ifd0):
+        if tag == 0x829A and typ == 5:                   # ExposureTime directly in IFD0 (TIFF)
+            return _rational(tiff, end, vpos)
+        if tag == 0x8769:                                # pointer to the Exif IFD
+            exif = struct.unpack(end + "I", tiff[vpos:vpos + 4])[0]
+            for tag2, typ2, _, vpos2 in entries(exif):
+                if tag2 == 0x829A and typ2 == 5:
+                    return _rational(tiff, end, vpos2)
     return None
 
 

@@ -32,12 +32,6 @@ _SRGB_TO_LINEAR = np.array([(v / 12.92) if v <= 0.04045 else ((v + 0.055) / 1.05
                             for v in np.arange(256) / 255.0], dtype=np.float32) * 255.0
 
 
-def dictionary_names() -> list[str]:
-    import cv2
-
-    return sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_") and n == n.upper())
-
-
 def get_dictionary(name: str):
     import cv2
 
