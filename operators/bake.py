@@ -24,7 +24,8 @@ from bpy.props import BoolProperty, IntProperty
 from ..addon.bake import culling, layout
 from ..addon.bake.hashing import content_hash
 from .probe_inputs import (GEOMETRY_TYPES, Describer, environment_exr, maps_for, point_inside,
-                           probe_origin, renderable, world_bounds, world_description)
+                           probe_origin, renderable, visible_in_probe, world_bounds,
+                           world_description)
 from ..addon.errors import PlateLightError
 from ..addon.exr_io import read_exr
 from ..addon.ibl.maps import (DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, map_filename,
@@ -173,10 +174,9 @@ class ProbeBake:
                         on_screen[ob.name] = True
                     origin = probe_origin(ob)
                     for other in others:
-                        if other is ob:
+                        if other is ob:          # hidden while its own probe renders
                             continue
-                            # (the owner is hidden while its probe renders)
-                        if self._in_range(origin, other):
+                        if visible_in_probe(other) and self._in_range(origin, other):
                             sees_any[ob.name] = True
                         if point_inside(other, depsgraph, origin):
                             raise PlateLightError(
@@ -218,6 +218,8 @@ class ProbeBake:
         return self._bounds[key]
 
     def _in_range(self, origin, other):
+        if other.type == "LIGHT" and other.data.type == "SUN":
+            return True                  # a sun lights everything, wherever it is placed
         centre, radius = self.bounds(other)
         return float(np.linalg.norm(centre - origin)) - radius <= self.scene.platelight.probe_distance
 

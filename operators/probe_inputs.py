@@ -144,12 +144,16 @@ class Describer:
 # --------------------------------------------------------------------------- scene queries
 
 def renderable(ob, view_layer):
-    """Objects the probe camera can see (lights count: they light what the probe sees)."""
+    """Objects that change a probe render: what the camera sees, and lights (they light it)."""
     if ob.hide_render or ob.type in {"CAMERA", "EMPTY", "SPEAKER", "LIGHT_PROBE", "ARMATURE", "LATTICE"}:
         return False
-    if ob.type == "LIGHT" and ob.data.type == "SUN":
-        return False                       # a sun lamp is never in view, and lights nothing else
     return ob.name in view_layer.objects   # not in an excluded collection
+
+
+def visible_in_probe(ob):
+    """Does the object itself show up in a panorama? Lights are invisible to camera rays unless
+    the user turned that on, so a probe that sees only lights and the world shows the world."""
+    return ob.type != "LIGHT" or ob.visible_camera
 
 
 def world_bounds(ob):

@@ -351,3 +351,30 @@ def test_pack_maps_into_the_blend_without_duplicates(bpy_clean, tmp_path):
     packed = np.array(spec.pixels[:], dtype=np.float32).reshape(spec.size[1], spec.size[0], 4)[::-1, :, :3]
     np.testing.assert_allclose(packed, read_map(tmp_path, "Sphere", "specular"), rtol=1e-6, atol=1e-7)
     assert angle_deg(bright_direction(packed[..., 0] - 0.5), (-1, 0, 0)) < 10
+
+
+def test_lights_are_probe_inputs_but_not_something_a_probe_sees(bpy_clean, tmp_path):
+    """A sun far away still lights what a probe sees (its change makes the probe stale); a scene
+    with only lights around the object still shares the world maps (lights are invisible to
+    camera rays)."""
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.2, 0.2, 0.2))
+    scene.platelight.probe_distance = 10
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    lonely = add_sphere(bpy, "Lonely", (0, 500, 0))
+    add_sphere(bpy, "Neighbour", (2, 0, 0), enabled=False, color=(0.8, 0.8, 0.8))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    sun.location = (0, 0, 1000)                       # far beyond probe_distance
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    scene.collection.objects.link(lamp)
+    lamp.location = (0, 501, 0)
+    bake(bpy, all_objects=True, cull=False)
+    assert lonely.platelight.probe_dir.endswith("_world/")
+    assert a.platelight.probe_status == "baked"
+    module = bake_module()
+    before = module.render_count
+    sun.data.energy = 3.0
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1          # A's probe sees the sun-lit neighbour
+    assert a.platelight.probe_status == "baked"
