@@ -378,3 +378,32 @@ def test_lights_are_probe_inputs_but_not_something_a_probe_sees(bpy_clean, tmp_p
     bake(bpy, all_objects=True, cull=False)
     assert module.render_count == before + 1          # A's probe sees the sun-lit neighbour
     assert a.platelight.probe_status == "baked"
+
+
+def test_shape_key_and_modifier_changes_make_probes_stale(bpy_clean, tmp_path):
+    """Geometry that changes without its transform or mesh data changing (shape keys, modifiers)
+    is hashed from the evaluated mesh."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.4, 0.4, 0.4))
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    b = add_sphere(bpy, "B", (2, 0, 0), enabled=False, color=(0.9, 0.2, 0.2))
+    b.shape_key_add(name="Basis")
+    key = b.shape_key_add(name="Squash")
+    for point in key.data:
+        point.co.z *= 0.3
+    key.value = 0.0
+    module = bake_module()
+    bake(bpy, all_objects=True, cull=False)
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before              # unchanged: cache hit
+    key.value = 1.0
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1
+    b.modifiers.new("Twist", "SIMPLE_DEFORM").angle = 0.5
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 2
+    b.modifiers["Twist"].angle = 0.9
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 3
+    assert a.platelight.probe_status == "baked"
