@@ -103,7 +103,9 @@ class Describer:
         data = ob.data
         if data is None:
             return None
-        if isinstance(data, bpy.types.Mesh) and (len(ob.modifiers) or data.shape_keys is not None):
+        if (isinstance(data, bpy.types.Mesh) and (len(ob.modifiers) or data.shape_keys is not None)
+                or ob.type in {"CURVE", "SURFACE", "FONT", "META"}):
+            # Curves, text and metaballs keep their shape in collections the RNA walk skips.
             return self.evaluated_mesh(ob, frame)
         key = (type(data).__name__, data.name_full)
         if key not in self._data:

@@ -380,7 +380,7 @@ def test_lights_are_probe_inputs_but_not_something_a_probe_sees(bpy_clean, tmp_p
     assert a.platelight.probe_status == "baked"
 
 
-def test_shape_key_and_modifier_changes_make_probes_stale(bpy_clean, tmp_path):
+def test_shape_key_modifier_and_text_changes_make_probes_stale(bpy_clean, tmp_path):
     """Geometry that changes without its transform or mesh data changing (shape keys, modifiers)
     is hashed from the evaluated mesh."""
     bpy = bpy_clean
@@ -406,4 +406,14 @@ def test_shape_key_and_modifier_changes_make_probes_stale(bpy_clean, tmp_path):
     b.modifiers["Twist"].angle = 0.9
     bake(bpy, all_objects=True, cull=False)
     assert module.render_count == before + 3
+    # Text: editing the characters changes the probe.
+    text = bpy.data.objects.new("Sign", bpy.data.curves.new("Sign", "FONT"))
+    bpy.context.scene.collection.objects.link(text)
+    text.location = (0, 2, 0)
+    text.data.body = "AR"
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 4
+    text.data.body = "VR"
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 5
     assert a.platelight.probe_status == "baked"
