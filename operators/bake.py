@@ -249,6 +249,9 @@ class ProbeBake:
         state.set(render, "use_compositing", False)
         state.set(render, "use_sequencer", False)
         state.set(render, "use_persistent_data", True)      # scene sync once, not per probe
+        state.set(render, "use_motion_blur", False)
+        # Only the active view layer: compositing setups add layers that hold things out.
+        state.set(render, "use_single_layer", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
         state.set(fmt, "media_type", "IMAGE")
@@ -274,6 +277,14 @@ class ProbeBake:
         if prefs is not None and prefs.threads > 0:
             state.set(render, "threads_mode", "FIXED")
             state.set(render, "threads", prefs.threads)
+        # Holdout / indirect-only are compositing devices: a probe sees everything as it is.
+        stack = [self.view_layer.layer_collection]
+        while stack:
+            layer_collection = stack.pop()
+            for flag in ("holdout", "indirect_only"):
+                if getattr(layer_collection, flag):
+                    state.set(layer_collection, flag, False)
+            stack.extend(layer_collection.children)
         # Phantoms stand for real things: probes must see them as they are, not as catchers.
         for ob in scene.objects:
             if ob.platelight.phantom:

@@ -232,8 +232,18 @@ def test_phantom_shadow_catcher_is_seen_in_probes_and_restored(bpy_clean, tmp_pa
     sphere = add_sphere(bpy, "Sphere", (0, 0, 1.0))
     floor = add_plane(bpy, "Floor", (0, 0, 0), size=20, color=(0.0, 0.0, 0.8), phantom=True)
     floor.is_shadow_catcher = True
+    # A compositing setup's extra view layer and a held-out collection must not change probes.
+    scene = bpy.context.scene
+    held = bpy.data.collections.new("Held")
+    scene.collection.children.link(held)
+    scene.collection.objects.unlink(floor)
+    held.objects.link(floor)
+    layer_collection = bpy.context.view_layer.layer_collection.children["Held"]
+    layer_collection.holdout = True
+    scene.view_layers.new("Shadows")
     bake(bpy, all_objects=True, cull=False)
-    assert floor.is_shadow_catcher
+    assert floor.is_shadow_catcher and layer_collection.holdout
+    assert not scene.render.use_single_layer
     bottom = read_map(tmp_path, "Sphere", "diffuse")[-1].mean(axis=0)
     assert bottom[2] > 3 * bottom[0]
 
