@@ -16,6 +16,7 @@ SUBCOMMANDS = {
     "demo": ".demo",
     "track": ".capture.cli_track",
     "probe": ".capture.cli_probe",
+    "bake": ".bake.cli_bake",
 }
 
 

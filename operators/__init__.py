@@ -2,7 +2,7 @@
 ``register_extra()``/``unregister_extra()`` (menu entries). Add new modules to _MODULES."""
 import importlib
 
-_MODULES = ("material", "track", "capture_probe")
+_MODULES = ("bake", "material", "track", "capture_probe")
 
 
 def _load():

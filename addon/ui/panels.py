@@ -1,7 +1,11 @@
-"""Panels: Object properties > PlateLight (per-object settings) and Scene properties > PlateLight."""
+"""Panels: Object properties > PlateLight (per-object settings, probe status, bake) and
+Scene properties > PlateLight (probe render settings, world probe, bake all)."""
 import bpy
 
 from .registration import register_classes, unregister_classes
+
+BAKE_OP = "platelight.bake_probes"
+CHECK_OP = "platelight.check_probes"
 
 
 class PLATELIGHT_PT_object(bpy.types.Panel):
@@ -21,10 +25,19 @@ class PLATELIGHT_PT_object(bpy.types.Panel):
         layout.prop(settings, "enabled")
         layout.prop(settings, "phantom")
         col = layout.column()
-        col.active = settings.enabled
+        col.active = settings.enabled and not settings.phantom
         col.prop(settings, "probe_origin")
         col.prop(settings, "probe_dir")
-        col.label(text=f"Probe: {settings.probe_status}")
+        status = settings.probe_status
+        icon = ("CHECKMARK" if status.startswith("baked") or status.startswith("world")
+                or status.startswith("up to date")
+                else "ERROR" if status in {"cancelled", "stale"} else "INFO")
+        col.label(text=f"Probe: {status}", icon=icon)
+        row = col.row(align=True)
+        row.operator(BAKE_OP, text="Bake Selected", icon="LIGHTPROBE_SPHERE").all_objects = False
+        op = row.operator(BAKE_OP, text="Re-bake", icon="FILE_REFRESH")
+        op.all_objects, op.force = False, True
+        row.operator(CHECK_OP, text="Check", icon="VIEWZOOM").all_objects = False
 
 
 class PLATELIGHT_PT_scene(bpy.types.Panel):
@@ -37,8 +50,18 @@ class PLATELIGHT_PT_scene(bpy.types.Panel):
         layout = self.layout
         settings = context.scene.platelight
         layout.use_property_split = True
-        for name in ("world_probe", "maps_dir", "probe_height", "probe_samples", "sampling"):
+        for name in ("world_probe", "maps_dir", "pack_maps"):
             layout.prop(settings, name)
+        col = layout.column(heading="Probes")
+        for name in ("probe_height", "probe_samples", "probe_distance", "sampling"):
+            col.prop(settings, name)
+        col = layout.column(align=True)
+        col.operator(BAKE_OP, text="Bake All Probes (Current Frame)",
+                     icon="LIGHTPROBE_SPHERE").all_objects = True
+        op = col.operator(BAKE_OP, text="Bake All Probes (Frame Range)", icon="RENDER_ANIMATION")
+        op.all_objects, op.use_frame_range = True, True
+        op.frame_start, op.frame_end = context.scene.frame_start, context.scene.frame_end
+        col.operator(CHECK_OP, text="Check All Probes", icon="VIEWZOOM").all_objects = True
 
 
 classes = (PLATELIGHT_PT_object, PLATELIGHT_PT_scene)

@@ -2,7 +2,8 @@
 
 Names listed in design.md's scripting contract (``phantom``, ``probe_dir``) are stable API."""
 import bpy
-from bpy.props import (BoolProperty, EnumProperty, IntProperty, PointerProperty, StringProperty)
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
+                       StringProperty)
 
 from .registration import register_classes, unregister_classes
 
@@ -26,6 +27,7 @@ class PlateLightObjectSettings(bpy.types.PropertyGroup):
         description="Folder holding this object's diffuse/glossy1/glossy2/specular EXR maps",
         subtype="DIR_PATH",
         default="",
+        options={"PATH_SUPPORTS_BLEND_RELATIVE"},
     )
     probe_origin: PointerProperty(
         name="Probe Origin",
@@ -62,12 +64,26 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         description="Where baked maps are written (relative to the .blend when it starts with //)",
         default="//platelight_maps",
         subtype="DIR_PATH",
+        options={"PATH_SUPPORTS_BLEND_RELATIVE"},
     )
     world_probe: StringProperty(
         name="World Probe",
         description="Equirectangular EXR of the real place (empty: the world's environment texture)",
         default="",
         subtype="FILE_PATH",
+        options={"PATH_SUPPORTS_BLEND_RELATIVE"},
+    )
+    probe_distance: FloatProperty(
+        name="Probe Distance",
+        description="Probes see objects up to this far away; objects farther off neither appear "
+        "in a probe nor make it stale when they move",
+        default=1000.0, min=0.01, soft_max=10000.0, unit="LENGTH",
+    )
+    pack_maps: BoolProperty(
+        name="Pack Maps",
+        description="Also pack the baked maps into the .blend (one image per map file, updated in "
+        "place on re-bake), so the file renders without its maps folder",
+        default=False,
     )
     sampling: EnumProperty(
         name="Sampling",

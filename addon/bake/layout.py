@@ -1,0 +1,87 @@
+"""Where baked maps live: one folder per object under the scene's maps folder (the world's maps
+in ``_world``), plus one small JSON record per baked frame holding the content hash it was baked
+from."""
+from __future__ import annotations
+
+import json
+import os
+import re
+import tempfile
+
+from ..errors import PlateLightError
+from ..ibl.maps import MAP_NAMES, map_filename
+
+WORLD_FOLDER = "_world"
+_UNSAFE = re.compile(r"[^\w.-]+")
+
+
+def folder_name(object_name: str) -> str:
+    """A portable folder name for an object: anything but letters, digits, '.', '-' and '_'
+    becomes '_' (path separators, Windows' reserved characters, spaces for shells),
+    and it never starts with '.' or '_' (the world's folder and hidden files)."""
+    name = _UNSAFE.sub("_", object_name).strip("._ ") or "object"
+    return name[:100]
+
+
+def record_filename(frame: int | None) -> str:
+    """One small JSON record per baked frame (``bake.json``, ``bake_0010.json``): machines that
+    bake different frames into the same folder never write the same file."""
+    return "bake.json" if frame is None else f"bake_{int(frame):04d}.json"
+
+
+def read_record(folder: str, frame: int | None) -> dict:
+    """The frame's bake record, or {} if missing or unreadable (which reads as a stale cache)."""
+    try:
+        with open(os.path.join(folder, record_filename(frame))) as fh:
+            data = json.load(fh)
+        return data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def is_cached(folder: str, frame: int | None, digest: str, maps) -> bool:
+    """True when the folder holds maps of this frame baked from inputs with this hash."""
+    if read_record(folder, frame).get("hash") != digest:
+        return False
+    return all(os.path.isfile(os.path.join(folder, map_filename(n, frame))) for n in maps)
+
+
+def write_record(folder: str, frame: int | None, digest: str, maps, **extra) -> None:
+    """Atomically write the frame's record (after its maps, so a record always means maps)."""
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".json", dir=folder)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump({"hash": digest, "maps": list(maps), **extra}, fh, indent=1, sort_keys=True)
+        os.replace(tmp, os.path.join(folder, record_filename(frame)))
+    except OSError as exc:
+        raise PlateLightError(f"Cannot write the bake record in {folder}: {exc.strerror}.") from None
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:
+    """Delete this frame's maps that the object no longer needs (a matte object that used to be
+    glossy), so no stale map is ever picked up. Returns the names removed."""
+    removed = []
+    for name in MAP_NAMES:
+        path = os.path.join(folder, map_filename(name, frame))
+        if name not in keep and os.path.isfile(path):
+            os.unlink(path)
+            removed.append(name)
+    return removed
+
+
+def check_writable(folder: str) -> None:
+    """Create ``folder`` if needed and make sure files can be written there (one sentence if not)."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as exc:
+        raise PlateLightError(f"Cannot create the maps folder {folder}: {exc.strerror}.") from None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".probe-", dir=folder)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError:
+        raise PlateLightError(f"The maps folder {folder} is not writable; choose another in "
+                              "Scene > PlateLight > Maps Folder.") from None

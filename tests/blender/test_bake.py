@@ -1,0 +1,429 @@
+"""Probe baking in headless Blender (Cycles, tiny renders): colour bleeding from phantoms,
+other objects at the right direction, the owner never in its own probe, caching, frame ranges,
+culling, world maps, and the scene left as it was."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bake_scenes import (add_plane, add_sphere, angle_deg, bake_module, bright_direction,
+                         maps_folder, new_scene, read_map, scene_snapshot)
+
+
+def bake(bpy, **kwargs):
+    result = bpy.ops.platelight.bake_probes(**kwargs)
+    assert result == {"FINISHED"}, result
+    return result
+
+
+def test_red_phantom_bleeds_into_diffuse_and_world_maps_stay(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(1.0, 1.0, 1.0))
+    sphere = add_sphere(bpy, "Sphere", (0, 0, 1.0), radius=0.5, color=(1, 1, 1))
+    lonely = add_sphere(bpy, "Lonely", (0, 2000, 0), radius=0.5)    # beyond every probe distance
+    lonely.platelight.enabled = True
+    add_plane(bpy, "Floor", (0, 0, 0), size=20, color=(0.8, 0.0, 0.0), phantom=True)
+    bpy.context.scene.platelight.probe_distance = 100
+    bpy.context.scene.camera.data.clip_end = 5000
+    bake(bpy, all_objects=True, cull=False)
+
+    diffuse = read_map(tmp_path, "Sphere", "diffuse")
+    bottom, top = diffuse[-1].mean(axis=0), diffuse[0].mean(axis=0)
+    # Looking down the sphere sees the red floor: red, with green and blue well below.
+    assert bottom[0] > 0.3 and bottom[1] < 0.35 * bottom[0] and bottom[2] < 0.35 * bottom[0]
+    # Looking up it sees the white sky (and a little red floor through the cosine lobe).
+    assert top[1] > 0.85 and top[2] > 0.85
+    # The object that sees only the world shares the world's maps, which the floor does not tint.
+    assert lonely.platelight.probe_dir.endswith("_world/")
+    world = read_map(tmp_path, "_world", "diffuse")
+    np.testing.assert_allclose(world, 1.0, atol=0.03)
+    assert sphere.platelight.probe_dir == "//platelight_maps/Sphere/"
+
+
+def test_other_object_appears_in_specular_at_its_direction_and_owner_never(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.0, 0.0, 0.0), height=32)
+    # Green glowing owner, red glowing neighbour 3 m along +X.
+    owner = add_sphere(bpy, "Owner", (0, 0, 0), radius=0.5, color=(0, 0, 0), emission=(0, 5, 0))
+    other = add_sphere(bpy, "Other", (3, 0, 0), radius=0.8, color=(0, 0, 0), emission=(5, 0, 0))
+    bake(bpy, all_objects=True, cull=False)
+
+    spec = read_map(tmp_path, "Owner", "specular")            # 32 x 64 (probe height)
+    assert spec.shape == (32, 64, 3)
+    assert spec[..., 1].max() < 1e-3, "the owner shows up in its own probe"
+    red = spec[..., 0]
+    # One texel is 5.6 degrees at 64 columns.
+    assert angle_deg(bright_direction(red), (1, 0, 0)) < 3
+    # The sphere of radius 0.8 at 3 m subtends ~15.5 degrees: about 3 texels wide at 64 columns.
+    assert (red > 1.0).sum() >= 4
+
+    # And the neighbour's probe sees the green owner at -X, never itself.
+    spec_other = read_map(tmp_path, "Other", "specular")
+    assert spec_other[..., 0].max() < 1e-3
+    assert angle_deg(bright_direction(spec_other[..., 1]), (-1, 0, 0)) < 3
+    assert owner.platelight.probe_status == other.platelight.probe_status == "baked"
+
+
+def test_unchanged_rebake_is_a_cache_hit_and_moving_rebakes_only_who_sees_it(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5))
+    scene.platelight.probe_distance = 20
+    scene.camera.data.clip_end = 1000
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    b = add_sphere(bpy, "B", (3, 0, 0), color=(0.2, 0.9, 0.2))
+    c = add_sphere(bpy, "C", (0, 200, 0))           # 200 m away: outside A's and B's range
+    d = add_sphere(bpy, "D", (0, 205, 0))           # C's only neighbour
+    module = bake_module()
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count >= 4
+    stamps = {n: (maps_folder(tmp_path, n) / "diffuse.exr").stat().st_mtime_ns for n in "ABCD"}
+
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before, "an unchanged scene rendered again"
+    assert all(bpy.data.objects[n].platelight.probe_status == "baked (unchanged)" for n in "ABCD")
+
+    b.location.x = 2.5
+    # Checking says who is stale, renders nothing and writes nothing.
+    assert bpy.ops.platelight.check_probes(all_objects=True, cull=False) == {"FINISHED"}
+    assert module.render_count == before
+    assert [bpy.data.objects[n].platelight.probe_status for n in "ABCD"] == \
+        ["stale", "stale", "up to date", "up to date"]
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 2        # A (sees B) and B (its origin moved)
+    after = {n: (maps_folder(tmp_path, n) / "diffuse.exr").stat().st_mtime_ns for n in "ABCD"}
+    assert after["A"] != stamps["A"] and after["B"] != stamps["B"]
+    assert after["C"] == stamps["C"] and after["D"] == stamps["D"]
+
+    # A material edit on B is an input of A's probe too.
+    b.data.materials[0].node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (1, 0, 0, 1)
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1        # only A sees B's material
+    # force re-renders everything
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False, force=True)
+    assert module.render_count == before + 4
+
+
+def test_frame_range_writes_per_frame_maps_of_a_moving_object(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.0, 0.0, 0.0))
+    owner = add_sphere(bpy, "Owner", (0, 0, 0))
+    lamp = add_sphere(bpy, "Lamp", (3, 0, 0), color=(0, 0, 0), emission=(5, 5, 5))
+    lamp.location = (3, 0, 0)
+    lamp.keyframe_insert("location", frame=1)
+    lamp.location = (0, 3, 0)
+    lamp.keyframe_insert("location", frame=3)
+    lamp.platelight.enabled = False
+    owner.select_set(True)
+    bpy.context.view_layer.objects.active = owner
+    scene.frame_set(2)
+    before = scene_snapshot(bpy)
+    bake(bpy, frame_start=1, frame_end=3, cull=False)
+    assert scene_snapshot(bpy) == before
+    folder = maps_folder(tmp_path, "Owner")
+    for frame in (1, 2, 3):
+        assert (folder / f"specular_{frame:04d}.exr").is_file()
+        assert (folder / f"bake_{frame:04d}.json").is_file()
+    assert not (folder / "specular.exr").exists()
+    # The lamp moves from +X (frame 1) to +Y (frame 3): the brightest texel follows it.
+    for frame, direction in ((1, (1, 0, 0)), (3, (0, 1, 0))):
+        spec = read_map(tmp_path, "Owner", "specular", frame=frame)
+        assert angle_deg(bright_direction(spec[..., 0]), direction) < 3
+    assert owner.platelight.probe_status.startswith("baked (frames 1-3)")
+
+
+def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.3, 0.3, 0.3))
+    add_plane(bpy, "Floor", (0, 0, -1), color=(0.5, 0.5, 0.5), phantom=True)
+    matte = add_sphere(bpy, "Matte", (-1, 0, 0))
+    mirror = add_sphere(bpy, "Mirror", (1, 0, 0))
+    plain = add_sphere(bpy, "Plain", (0, 0, 1))       # no material: any SBRDF may come later
+    for ob, diffuse, specular, glossiness, fresnel in ((matte, 0.8, 0.0, 0.0, 0.0),
+                                                        (mirror, 0.0, 1.0, 1.0, 0.2)):
+        mat = bpy.data.materials.new(ob.name)
+        group = bpy.data.node_groups.get("PlateLight SBRDF") or _fake_sbrdf_group(bpy)
+        node = mat.node_tree.nodes.new("ShaderNodeGroup")
+        node.node_tree = group
+        node.inputs["Diffuse Albedo"].default_value = (diffuse,) * 3 + (1,)
+        node.inputs["Specular Albedo"].default_value = (specular,) * 3 + (1,)
+        node.inputs["Glossiness"].default_value = glossiness
+        node.inputs["Fresnel Falloff"].default_value = fresnel
+        ob.data.materials.append(mat)
+    bake(bpy, all_objects=True, cull=False)
+    names = lambda n: sorted(p.name for p in maps_folder(tmp_path, n).glob("*.exr"))
+    assert names("Matte") == ["diffuse.exr"]
+    assert names("Mirror") == ["specular.exr"]
+    assert names("Plain") == ["diffuse.exr", "glossy1.exr", "glossy2.exr", "specular.exr"]
+    # The mirror turns matte: the next bake computes only the diffuse map and drops the old one.
+    node = mirror.data.materials[0].node_tree.nodes["Group"]
+    node.inputs["Diffuse Albedo"].default_value = (0.5, 0.5, 0.5, 1)
+    node.inputs["Specular Albedo"].default_value = (0, 0, 0, 1)
+    node.inputs["Fresnel Falloff"].default_value = 0.0
+    bake(bpy, all_objects=True, cull=False)
+    assert names("Mirror") == ["diffuse.exr"]
+
+
+def _fake_sbrdf_group(bpy):
+    """The SBRDF group's interface as design.md names it (the real builder is the sbrdf branch's;
+    only the inputs matter to which maps a bake computes)."""
+    group = bpy.data.node_groups.new("PlateLight SBRDF", "ShaderNodeTree")
+    for name, kind in (("Diffuse Albedo", "NodeSocketColor"), ("Specular Albedo", "NodeSocketColor"),
+                       ("Glossiness", "NodeSocketFloat"), ("Fresnel Falloff", "NodeSocketFloat")):
+        group.interface.new_socket(name, in_out="INPUT", socket_type=kind)
+    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    return group
+
+
+def test_objects_off_screen_in_every_frame_are_skipped(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5))
+    seen = add_sphere(bpy, "Seen", (0, 0, 0))
+    behind = add_sphere(bpy, "Behind", (0, -20, 0))     # behind the camera at y = -10
+    module = bake_module()
+    before = module.render_count
+    bpy.ops.platelight.bake_probes(all_objects=True)
+    assert module.render_count == before + 1
+    assert behind.platelight.probe_status.startswith("skipped")
+    assert not maps_folder(tmp_path, "Behind").exists()
+    assert seen.platelight.probe_status == "baked"
+
+
+def test_world_probe_render_matches_the_world_maps(bpy_clean, tmp_path, studio_hdris):
+    """Blender's panorama of the world alone and the engine's maps of the world EXR agree:
+    same direction convention, no mirror, no shift."""
+    bpy = bpy_clean
+    from platelight.addon.ibl.maps import MapSettings, compute_maps
+
+    exr = studio_hdris["forest"]
+    new_scene(bpy, tmp_path, env_exr=exr, height=64, samples=16)
+    ob = add_sphere(bpy, "Probe", (0, 0, 0))
+    bake(bpy, all_objects=True, cull=False)                 # sees only the world: world maps
+    assert ob.platelight.probe_dir.endswith("_world/")
+    world_maps = {n: read_map(tmp_path, "_world", n) for n in ("diffuse", "glossy1")}
+
+    module = bake_module()
+    job = module.ProbeBake(bpy.context, [ob], [1], reuse_world=False, cull=False)
+    job.start()
+    try:
+        panorama = job.render_probe((0, 0, 0), hidden=[ob])
+    finally:
+        job.end()
+    assert panorama.shape == (64, 128, 3)
+    heights = {"diffuse": 16, "glossy1": 32}
+    rendered = compute_maps(panorama, MapSettings(heights=heights), which=tuple(heights)).maps
+    for name in heights:
+        ref = world_maps[name]
+        err = np.abs(rendered[name] - ref).mean() / ref.mean()
+        print(name, "relative mean error", err)
+        assert err < 0.03, (name, err)
+        # Shifting by a quarter turn or mirroring left-right would be far worse.
+        shifted = np.roll(ref, ref.shape[1] // 4, axis=1)
+        assert np.abs(rendered[name] - shifted).mean() / ref.mean() > 3 * err
+        mirrored = ref[:, ::-1]
+        assert np.abs(rendered[name] - mirrored).mean() / ref.mean() > 3 * err
+
+
+def test_phantom_shadow_catcher_is_seen_in_probes_and_restored(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(1.0, 1.0, 1.0))
+    sphere = add_sphere(bpy, "Sphere", (0, 0, 1.0))
+    floor = add_plane(bpy, "Floor", (0, 0, 0), size=20, color=(0.0, 0.0, 0.8), phantom=True)
+    floor.is_shadow_catcher = True
+    # A compositing setup's extra view layer and a held-out collection must not change probes.
+    scene = bpy.context.scene
+    held = bpy.data.collections.new("Held")
+    scene.collection.children.link(held)
+    scene.collection.objects.unlink(floor)
+    held.objects.link(floor)
+    layer_collection = bpy.context.view_layer.layer_collection.children["Held"]
+    layer_collection.holdout = True
+    scene.view_layers.new("Shadows")
+    bake(bpy, all_objects=True, cull=False)
+    assert floor.is_shadow_catcher and layer_collection.holdout
+    assert not scene.render.use_single_layer
+    bottom = read_map(tmp_path, "Sphere", "diffuse")[-1].mean(axis=0)
+    assert bottom[2] > 3 * bottom[0]
+
+
+def test_panels_draw_and_menus_list_the_operator(bpy_clean, tmp_path):
+    """The UI code runs (draw() against real property groups) and the menus hold the operator."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path)
+    ob = add_sphere(bpy, "Sphere", (0, 0, 0))
+    module = bake_module()
+    assert module.menu_entry in bpy.types.VIEW3D_MT_object._dyn_ui_initialize()
+    panels = __import__(module.__package__.rsplit(".", 1)[0] + ".addon.ui.panels", fromlist=["x"])
+
+    class Recorder:
+        """Stands in for UILayout, which only Blender's window code can create."""
+        def __init__(self):
+            self.calls = []
+
+        def __getattr__(self, name):
+            def call(*args, **kwargs):
+                self.calls.append((name, args, kwargs))
+                if name in {"column", "row"}:
+                    return self
+                if name == "operator":
+                    return type("Props", (), {})()
+                return None
+            return call
+
+    for panel_cls in (panels.PLATELIGHT_PT_object, panels.PLATELIGHT_PT_scene):
+        recorder = Recorder()
+        panel = type("P", (), {"layout": recorder})()
+        panel_cls.draw(panel, bpy.context)
+        props = [args[1] for name, args, _ in recorder.calls if name == "prop"]
+        ops = [args[0] for name, args, _ in recorder.calls if name == "operator"]
+        assert "platelight.bake_probes" in ops
+        for prop in props:   # every drawn property exists
+            owner = ob.platelight if panel_cls is panels.PLATELIGHT_PT_object else bpy.context.scene.platelight
+            assert hasattr(owner, prop), prop
+
+
+def test_world_maps_follow_strength_and_fall_back_to_rendering_a_rotated_world(bpy_clean, tmp_path,
+                                                                             studio_hdris):
+    bpy = bpy_clean
+    from platelight.addon.exr_io import read_exr
+    from platelight.addon.ibl.maps import MapSettings, compute_maps
+
+    exr = studio_hdris["interior"]
+    scene = new_scene(bpy, tmp_path, env_exr=exr, height=64, samples=16)
+    background = scene.world.node_tree.nodes["Background"]
+    background.inputs["Strength"].default_value = 2.0
+    add_sphere(bpy, "Probe", (0, 0, 0))
+    bake(bpy, all_objects=True, cull=False)
+    env = read_exr(exr)
+    direct = compute_maps(env, MapSettings(), which=("diffuse",)).maps["diffuse"]
+    np.testing.assert_allclose(read_map(tmp_path, "_world", "diffuse"), 2 * direct, rtol=1e-4, atol=1e-6)
+
+    # A quarter turn about Z through a Mapping node: the EXR alone no longer says what the world
+    # looks like, so the world is rendered; its maps are the EXR's turned by a quarter.
+    tree = scene.world.node_tree
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], tree.nodes["Environment Texture"].inputs["Vector"])
+    mapping.inputs["Rotation"].default_value = (0, 0, np.pi / 2)
+    background.inputs["Strength"].default_value = 1.0
+    module = bake_module()
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1          # the world changed: one render of it
+    rendered = read_map(tmp_path, "_world", "diffuse")
+    small = compute_maps(env, MapSettings(heights={"diffuse": 16}), which=("diffuse",)).maps["diffuse"]
+    # The Mapping node turns the lookup vector by +90 degrees about Z (+X looks up +Y), so the
+    # texel at u shows the EXR at u - 1/4 (u = atan2(-y, x)/2pi + 0.5): a roll by +W/4.
+    turned = np.roll(small, small.shape[1] // 4, axis=1)
+    err = np.abs(rendered - turned).mean() / turned.mean()
+    wrong = np.abs(rendered - np.roll(small, -small.shape[1] // 4, axis=1)).mean() / turned.mean()
+    assert err < 0.03 and wrong > 3 * err, (err, wrong)
+
+
+def test_probe_origin_object_sets_the_probe_centre(bpy_clean, tmp_path):
+    import json
+
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.0, 0.0, 0.0))
+    ob = add_sphere(bpy, "Sphere", (0, 0, 0), radius=0.5)
+    add_sphere(bpy, "Lamp", (0, 0, 3), radius=0.3, enabled=False, color=(0, 0, 0), emission=(4, 4, 4))
+    origin = bpy.data.objects.new("Origin", None)
+    scene.collection.objects.link(origin)
+    origin.location = (0, 0, 5)               # above the lamp: the lamp is now straight down
+    ob.platelight.probe_origin = origin
+    bake(bpy, all_objects=True, cull=False)
+    record = json.loads((maps_folder(tmp_path, "Sphere") / "bake.json").read_text())
+    assert record["origin"] == pytest.approx([0, 0, 5])
+    spec = read_map(tmp_path, "Sphere", "specular")
+    assert angle_deg(bright_direction(spec[..., 0]), (0, 0, -1)) < 5
+
+
+def test_pack_maps_into_the_blend_without_duplicates(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5))
+    scene.platelight.pack_maps = True
+    ob = add_sphere(bpy, "Sphere", (0, 0, 0))
+    lamp = add_sphere(bpy, "Lamp", (2, 0, 0), enabled=False, color=(0, 0, 0), emission=(3, 3, 3))
+    bake(bpy, all_objects=True, cull=False)
+    images = {im.name: im for im in bpy.data.images if im.name.startswith("PlateLight ")}
+    assert sorted(images) == [f"PlateLight Sphere/{n}.exr" for n in ("diffuse", "glossy1", "glossy2", "specular")]
+    assert all(im.packed_file is not None for im in images.values())
+    assert images["PlateLight Sphere/diffuse.exr"].filepath == ob.platelight.probe_dir + "diffuse.exr"
+
+    lamp.location.x = -2                       # changes the probe: re-bake re-packs in place
+    bake(bpy, all_objects=True, cull=False)
+    again = [im for im in bpy.data.images if im.name.startswith("PlateLight ")]
+    assert len(again) == 4 and len(bpy.data.images) == len(images)
+    spec = images["PlateLight Sphere/specular.exr"]
+    packed = np.array(spec.pixels[:], dtype=np.float32).reshape(spec.size[1], spec.size[0], 4)[::-1, :, :3]
+    np.testing.assert_allclose(packed, read_map(tmp_path, "Sphere", "specular"), rtol=1e-6, atol=1e-7)
+    assert angle_deg(bright_direction(packed[..., 0] - 0.5), (-1, 0, 0)) < 10
+
+
+def test_lights_are_probe_inputs_but_not_something_a_probe_sees(bpy_clean, tmp_path):
+    """A sun far away still lights what a probe sees (its change makes the probe stale); a scene
+    with only lights around the object still shares the world maps (lights are invisible to
+    camera rays)."""
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.2, 0.2, 0.2))
+    scene.platelight.probe_distance = 10
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    lonely = add_sphere(bpy, "Lonely", (0, 500, 0))
+    add_sphere(bpy, "Neighbour", (2, 0, 0), enabled=False, color=(0.8, 0.8, 0.8))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    sun.location = (0, 0, 1000)                       # far beyond probe_distance
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    scene.collection.objects.link(lamp)
+    lamp.location = (0, 501, 0)
+    bake(bpy, all_objects=True, cull=False)
+    assert lonely.platelight.probe_dir.endswith("_world/")
+    assert a.platelight.probe_status == "baked"
+    module = bake_module()
+    before = module.render_count
+    sun.data.energy = 3.0
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1          # A's probe sees the sun-lit neighbour
+    assert a.platelight.probe_status == "baked"
+
+
+def test_shape_key_modifier_and_text_changes_make_probes_stale(bpy_clean, tmp_path):
+    """Geometry that changes without its transform or mesh data changing (shape keys, modifiers)
+    is hashed from the evaluated mesh."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.4, 0.4, 0.4))
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    b = add_sphere(bpy, "B", (2, 0, 0), enabled=False, color=(0.9, 0.2, 0.2))
+    b.shape_key_add(name="Basis")
+    key = b.shape_key_add(name="Squash")
+    for point in key.data:
+        point.co.z *= 0.3
+    key.value = 0.0
+    module = bake_module()
+    bake(bpy, all_objects=True, cull=False)
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before              # unchanged: cache hit
+    key.value = 1.0
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1
+    b.modifiers.new("Twist", "SIMPLE_DEFORM").angle = 0.5
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 2
+    b.modifiers["Twist"].angle = 0.9
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 3
+    # Text: editing the characters changes the probe.
+    text = bpy.data.objects.new("Sign", bpy.data.curves.new("Sign", "FONT"))
+    bpy.context.scene.collection.objects.link(text)
+    text.location = (0, 2, 0)
+    text.data.body = "AR"
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 4
+    text.data.body = "VR"
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 5
+    assert a.platelight.probe_status == "baked"
