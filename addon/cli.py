@@ -14,6 +14,8 @@ from .errors import PlateLightError
 SUBCOMMANDS = {
     "maps": ".ibl.cli_maps",
     "demo": ".demo",
+    "track": ".capture.cli_track",
+    "probe": ".capture.cli_probe",
     "bake": ".bake.cli_bake",
 }
 

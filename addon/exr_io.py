@@ -7,11 +7,11 @@ Reads RGB, RGBA, Y (grey), half or float, scanline or tiled, returning float32 a
 from __future__ import annotations
 
 import os
-import tempfile
 
 import numpy as np
 
 from .errors import PlateLightError
+from .fileio import atomic_path
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"
 
@@ -75,13 +75,5 @@ def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:
     names = "RGBA"[: data.shape[2]]
     channels = {n: np.ascontiguousarray(data[..., i]) for i, n in enumerate(names)}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".exr", dir=folder)
-    os.close(fd)
-    try:
+    with atomic_path(path, suffix=".exr") as tmp:
         OpenEXR.File(header, channels).write(tmp)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise PlateLightError(f"Cannot write {path}: {exc.strerror}") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)

@@ -1,6 +1,7 @@
 """Small file helpers shared by the CLI and operators: atomic text writes, writable folders."""
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import tempfile
@@ -22,19 +23,27 @@ def ensure_writable_folder(folder: str | os.PathLike) -> str:
     return folder
 
 
-def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str = ""):
+    """Yield a temporary path in ``path``'s folder; on success it is renamed over ``path`` (a
+    reader never sees a half-written file), on any failure it is removed and ``path`` is kept."""
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=suffix, dir=folder)
+    os.close(fd)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        yield tmp
         os.replace(tmp, path)
     except OSError as exc:
         raise PlateLightError(f"Cannot write {path}: {exc.strerror}") from None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
 
 
 def write_json_atomic(path: str | os.PathLike, data) -> None:

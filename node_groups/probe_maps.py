@@ -54,18 +54,34 @@ def ensure_probe_group(folder: str, label: str | None = None):
     return tree
 
 
+def _present_single(path: str) -> list:
+    return [n for n in MAP_NAMES if os.path.isfile(os.path.join(path, map_filename(n)))]
+
+
+def _sequence_frames(path: str) -> dict:
+    """map name -> sorted frame numbers of its ``<name>_####.exr`` files."""
+    frames = {}
+    for f in os.listdir(path):
+        stem, ext = os.path.splitext(f)
+        name, _, digits = stem.rpartition("_")
+        if ext == ".exr" and name in MAP_NAMES and digits.isdigit():
+            frames.setdefault(name, []).append(int(digits))
+    return {n: sorted(v) for n, v in frames.items()}
+
+
 def probe_maps_status(folder: str) -> tuple[str, int | None]:
-    """("single" | "sequence" | "missing", first frame or None) for the maps in ``folder``."""
+    """("single" | "sequence" | "missing", first frame or None) for the maps in ``folder``.
+
+    The bake writes only the maps an object's materials read (a matte object gets diffuse
+    alone), so any one map makes the folder usable; absent maps are bound as no image."""
     path = bpy.path.abspath(folder) if folder else ""
     if not path or not os.path.isdir(path):
         return "missing", None
-    if all(os.path.isfile(os.path.join(path, map_filename(n))) for n in MAP_NAMES):
+    if _present_single(path):
         return "single", None
-    frames = sorted(int(f[len("diffuse_"):-4]) for f in os.listdir(path)
-                    if f.startswith("diffuse_") and f.endswith(".exr") and f[8:-4].isdigit())
-    if frames and all(os.path.isfile(os.path.join(path, map_filename(n, frames[0])))
-                      for n in MAP_NAMES):
-        return "sequence", frames[0]
+    frames = _sequence_frames(path)
+    if frames:
+        return "sequence", min(v[0] for v in frames.values())
     return "missing", None
 
 
@@ -73,22 +89,22 @@ def bind_images(tree):
     """Point the group's Environment Texture nodes at the folder's maps (reloading them)."""
     folder = tree[FOLDER_KEY]
     kind, first = probe_maps_status(folder)
-    frames = _frame_count(folder, first) if kind == "sequence" else 1
+    path = bpy.path.abspath(folder) if folder else ""
     for node in tree.nodes:
         name = node.get("platelight_map")
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
             continue
-        if kind == "missing":
-            node.image = None
+        filename = map_filename(name, first if kind == "sequence" else None) if kind != "missing" else None
+        if filename is None or not os.path.isfile(os.path.join(path, filename)):
+            node.image = None                      # this map was not baked: the lobe reads black
             continue
-        filename = map_filename(name, first if kind == "sequence" else None)
         image = _load_image(os.path.join(folder, filename), kind == "sequence")
         node.image = image
         if kind == "sequence":
             user = node.image_user
             user.frame_start = first
             user.frame_offset = first - 1
-            user.frame_duration = frames
+            user.frame_duration = _frame_count(folder, first, name)
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
 
@@ -106,10 +122,10 @@ def _load_image(filepath, sequence):
     return image
 
 
-def _frame_count(folder, first):
+def _frame_count(folder, first, name="diffuse"):
     path = bpy.path.abspath(folder)
     count = 0
-    while os.path.isfile(os.path.join(path, map_filename("diffuse", first + count))):
+    while os.path.isfile(os.path.join(path, map_filename(name, first + count))):
         count += 1
     return max(count, 1)
 

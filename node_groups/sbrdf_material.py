@@ -10,6 +10,7 @@ import os
 
 import bpy
 
+from ..addon.bake.layout import WORLD_FOLDER
 from ..addon.material.params import PARAMETERS, SBRDFParams
 from ..addon.material.presets import preset_params
 from . import probe_maps
@@ -17,7 +18,7 @@ from .sbrdf import GROUP_NAME, LOOKUP_SOCKETS, ensure_sbrdf_group
 
 SBRDF_NODE = "PlateLight SBRDF"
 PROBE_NODE = "PlateLight Probe"
-WORLD_SUBDIR = "world"
+WORLD_SUBDIR = WORLD_FOLDER          # the bake writes the world's maps there
 
 
 def sbrdf_node(material):
@@ -59,7 +60,7 @@ def write_params(material, params: SBRDFParams) -> None:
 
 
 def world_maps_dir(scene) -> str:
-    """Where the world probe's maps live: <scene maps folder>/world (fallback for objects
+    """Where the world probe's maps live: <scene maps folder>/_world (fallback for objects
     whose own maps are missing)."""
     return os.path.join(scene.platelight.maps_dir or "//platelight_maps", WORLD_SUBDIR)
 

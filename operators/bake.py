@@ -24,7 +24,8 @@ from bpy.props import BoolProperty, IntProperty
 from ..addon.bake import culling, layout
 from ..addon.bake.hashing import content_hash
 from .probe_inputs import (GEOMETRY_TYPES, Describer, environment_exr, maps_for, point_inside,
-                           probe_origin, renderable, world_bounds, world_description)
+                           probe_origin, renderable, visible_in_probe, world_bounds,
+                           world_description)
 from ..addon.errors import PlateLightError
 from ..addon.exr_io import read_exr
 from ..addon.ibl.maps import (DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, map_filename,
@@ -173,10 +174,9 @@ class ProbeBake:
                         on_screen[ob.name] = True
                     origin = probe_origin(ob)
                     for other in others:
-                        if other is ob:
+                        if other is ob:          # hidden while its own probe renders
                             continue
-                            # (the owner is hidden while its probe renders)
-                        if self._in_range(origin, other):
+                        if visible_in_probe(other) and self._in_range(origin, other):
                             sees_any[ob.name] = True
                         if point_inside(other, depsgraph, origin):
                             raise PlateLightError(
@@ -218,6 +218,8 @@ class ProbeBake:
         return self._bounds[key]
 
     def _in_range(self, origin, other):
+        if other.type == "LIGHT" and other.data.type == "SUN":
+            return True                  # a sun lights everything, wherever it is placed
         centre, radius = self.bounds(other)
         return float(np.linalg.norm(centre - origin)) - radius <= self.scene.platelight.probe_distance
 
@@ -247,6 +249,9 @@ class ProbeBake:
         state.set(render, "use_compositing", False)
         state.set(render, "use_sequencer", False)
         state.set(render, "use_persistent_data", True)      # scene sync once, not per probe
+        state.set(render, "use_motion_blur", False)
+        # Only the active view layer: compositing setups add layers that hold things out.
+        state.set(render, "use_single_layer", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
         state.set(fmt, "media_type", "IMAGE")
@@ -272,6 +277,14 @@ class ProbeBake:
         if prefs is not None and prefs.threads > 0:
             state.set(render, "threads_mode", "FIXED")
             state.set(render, "threads", prefs.threads)
+        # Holdout / indirect-only are compositing devices: a probe sees everything as it is.
+        stack = [self.view_layer.layer_collection]
+        while stack:
+            layer_collection = stack.pop()
+            for flag in ("holdout", "indirect_only"):
+                if getattr(layer_collection, flag):
+                    state.set(layer_collection, flag, False)
+            stack.extend(layer_collection.children)
         # Phantoms stand for real things: probes must see them as they are, not as catchers.
         for ob in scene.objects:
             if ob.platelight.phantom:

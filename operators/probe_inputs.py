@@ -96,13 +96,17 @@ class Describer:
         see the object (hashing dominates a cache hit otherwise)."""
         key = (ob.name_full, frame)
         if key not in self._digests:
-            self._digests[key] = content_hash(self.seen_object(ob))
+            self._digests[key] = content_hash(self.seen_object(ob, frame))
         return self._digests[key]
 
-    def data(self, ob):
+    def data(self, ob, frame=None):
         data = ob.data
         if data is None:
             return None
+        if (isinstance(data, bpy.types.Mesh) and (len(ob.modifiers) or data.shape_keys is not None)
+                or ob.type in {"CURVE", "SURFACE", "FONT", "META"}):
+            # Curves, text and metaballs keep their shape in collections the RNA walk skips.
+            return self.evaluated_mesh(ob, frame)
         key = (type(data).__name__, data.name_full)
         if key not in self._data:
             desc = {"type": type(data).__name__}
@@ -119,6 +123,24 @@ class Describer:
             self._data[key] = desc
         return self._data[key]
 
+    def evaluated_mesh(self, ob, frame):
+        """Vertex positions after modifiers and shape keys (armatures, animated modifiers, shape
+        key values all end up here), read from the evaluated object of this frame."""
+        key = ("evaluated", ob.name_full, frame)
+        if key not in self._data:
+            evaluated = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            mesh = evaluated.to_mesh()
+            try:
+                co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+                mesh.vertices.foreach_get("co", co)
+                corners = np.empty(len(mesh.loops), dtype=np.int32)
+                mesh.loops.foreach_get("vertex_index", corners)
+                self._data[key] = {"type": "EvaluatedMesh", "co": co,
+                                   "loops": corners.astype(np.float64), "n_polys": len(mesh.polygons)}
+            finally:
+                evaluated.to_mesh_clear()
+        return self._data[key]
+
     def material(self, mat):
         if mat is None:
             return None
@@ -127,12 +149,12 @@ class Describer:
                                               "diffuse": list(mat.diffuse_color)}
         return self._materials[mat.name_full]
 
-    def seen_object(self, ob):
+    def seen_object(self, ob, frame=None):
         """What an object contributes to another object's probe at the current frame."""
         return {
             "name": ob.name_full,
             "matrix": np.array(ob.matrix_world, dtype=np.float64),
-            "data": self.data(ob),
+            "data": self.data(ob, frame),
             "modifiers": [(m.type, m.show_render, _rna_values(m)) for m in getattr(ob, "modifiers", [])],
             "materials": [self.material(slot.material) for slot in ob.material_slots],
             "visibility": [ob.visible_camera, ob.visible_diffuse, ob.visible_glossy,
@@ -144,12 +166,16 @@ class Describer:
 # --------------------------------------------------------------------------- scene queries
 
 def renderable(ob, view_layer):
-    """Objects the probe camera can see (lights count: they light what the probe sees)."""
+    """Objects that change a probe render: what the camera sees, and lights (they light it)."""
     if ob.hide_render or ob.type in {"CAMERA", "EMPTY", "SPEAKER", "LIGHT_PROBE", "ARMATURE", "LATTICE"}:
         return False
-    if ob.type == "LIGHT" and ob.data.type == "SUN":
-        return False                       # a sun lamp is never in view, and lights nothing else
     return ob.name in view_layer.objects   # not in an excluded collection
+
+
+def visible_in_probe(ob):
+    """Does the object itself show up in a panorama? Lights are invisible to camera rays unless
+    the user turned that on, so a probe that sees only lights and the world shows the world."""
+    return ob.type != "LIGHT" or ob.visible_camera
 
 
 def world_bounds(ob):

@@ -9,6 +9,7 @@ import re
 import tempfile
 
 from ..errors import PlateLightError
+from ..fileio import write_json_atomic
 from ..ibl.maps import MAP_NAMES, map_filename
 
 WORLD_FOLDER = "_world"
@@ -48,16 +49,11 @@ def is_cached(folder: str, frame: int | None, digest: str, maps) -> bool:
 
 def write_record(folder: str, frame: int | None, digest: str, maps, **extra) -> None:
     """Atomically write the frame's record (after its maps, so a record always means maps)."""
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".json", dir=folder)
     try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump({"hash": digest, "maps": list(maps), **extra}, fh, indent=1, sort_keys=True)
-        os.replace(tmp, os.path.join(folder, record_filename(frame)))
-    except OSError as exc:
-        raise PlateLightError(f"Cannot write the bake record in {folder}: {exc.strerror}.") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        write_json_atomic(os.path.join(folder, record_filename(frame)),
+                          {"hash": digest, "maps": list(maps), **extra})
+    except PlateLightError:
+        raise PlateLightError(f"Cannot write the bake record in {folder}.") from None
 
 
 def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:

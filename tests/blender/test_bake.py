@@ -232,8 +232,18 @@ def test_phantom_shadow_catcher_is_seen_in_probes_and_restored(bpy_clean, tmp_pa
     sphere = add_sphere(bpy, "Sphere", (0, 0, 1.0))
     floor = add_plane(bpy, "Floor", (0, 0, 0), size=20, color=(0.0, 0.0, 0.8), phantom=True)
     floor.is_shadow_catcher = True
+    # A compositing setup's extra view layer and a held-out collection must not change probes.
+    scene = bpy.context.scene
+    held = bpy.data.collections.new("Held")
+    scene.collection.children.link(held)
+    scene.collection.objects.unlink(floor)
+    held.objects.link(floor)
+    layer_collection = bpy.context.view_layer.layer_collection.children["Held"]
+    layer_collection.holdout = True
+    scene.view_layers.new("Shadows")
     bake(bpy, all_objects=True, cull=False)
-    assert floor.is_shadow_catcher
+    assert floor.is_shadow_catcher and layer_collection.holdout
+    assert not scene.render.use_single_layer
     bottom = read_map(tmp_path, "Sphere", "diffuse")[-1].mean(axis=0)
     assert bottom[2] > 3 * bottom[0]
 
@@ -351,3 +361,69 @@ def test_pack_maps_into_the_blend_without_duplicates(bpy_clean, tmp_path):
     packed = np.array(spec.pixels[:], dtype=np.float32).reshape(spec.size[1], spec.size[0], 4)[::-1, :, :3]
     np.testing.assert_allclose(packed, read_map(tmp_path, "Sphere", "specular"), rtol=1e-6, atol=1e-7)
     assert angle_deg(bright_direction(packed[..., 0] - 0.5), (-1, 0, 0)) < 10
+
+
+def test_lights_are_probe_inputs_but_not_something_a_probe_sees(bpy_clean, tmp_path):
+    """A sun far away still lights what a probe sees (its change makes the probe stale); a scene
+    with only lights around the object still shares the world maps (lights are invisible to
+    camera rays)."""
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.2, 0.2, 0.2))
+    scene.platelight.probe_distance = 10
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    lonely = add_sphere(bpy, "Lonely", (0, 500, 0))
+    add_sphere(bpy, "Neighbour", (2, 0, 0), enabled=False, color=(0.8, 0.8, 0.8))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    sun.location = (0, 0, 1000)                       # far beyond probe_distance
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    scene.collection.objects.link(lamp)
+    lamp.location = (0, 501, 0)
+    bake(bpy, all_objects=True, cull=False)
+    assert lonely.platelight.probe_dir.endswith("_world/")
+    assert a.platelight.probe_status == "baked"
+    module = bake_module()
+    before = module.render_count
+    sun.data.energy = 3.0
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1          # A's probe sees the sun-lit neighbour
+    assert a.platelight.probe_status == "baked"
+
+
+def test_shape_key_modifier_and_text_changes_make_probes_stale(bpy_clean, tmp_path):
+    """Geometry that changes without its transform or mesh data changing (shape keys, modifiers)
+    is hashed from the evaluated mesh."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.4, 0.4, 0.4))
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    b = add_sphere(bpy, "B", (2, 0, 0), enabled=False, color=(0.9, 0.2, 0.2))
+    b.shape_key_add(name="Basis")
+    key = b.shape_key_add(name="Squash")
+    for point in key.data:
+        point.co.z *= 0.3
+    key.value = 0.0
+    module = bake_module()
+    bake(bpy, all_objects=True, cull=False)
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before              # unchanged: cache hit
+    key.value = 1.0
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1
+    b.modifiers.new("Twist", "SIMPLE_DEFORM").angle = 0.5
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 2
+    b.modifiers["Twist"].angle = 0.9
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 3
+    # Text: editing the characters changes the probe.
+    text = bpy.data.objects.new("Sign", bpy.data.curves.new("Sign", "FONT"))
+    bpy.context.scene.collection.objects.link(text)
+    text.location = (0, 2, 0)
+    text.data.body = "AR"
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 4
+    text.data.body = "VR"
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 5
+    assert a.platelight.probe_status == "baked"

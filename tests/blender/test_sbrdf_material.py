@@ -75,7 +75,7 @@ def test_apply_sbrdf_poll_needs_an_object(bpy_clean):
 def test_missing_maps_fall_back_to_world_maps(bpy_clean, tmp_path):
     bpy = bpy_clean
     bpy.context.scene.platelight.maps_dir = str(tmp_path)
-    sc.write_maps(tmp_path / "world", sc.synthetic_maps(seed=3))
+    sc.write_maps(tmp_path / "_world", sc.synthetic_maps(seed=3))
     ob = _sphere(bpy)
     ob.platelight.probe_dir = str(tmp_path / "not_baked")
     sm = _sm()
@@ -85,7 +85,7 @@ def test_missing_maps_fall_back_to_world_maps(bpy_clean, tmp_path):
     assert mat["platelight_probe_dir"] == folder
     envs = [n for n in sm.probe_node(mat).node_tree.nodes
             if n.bl_idname == "ShaderNodeTexEnvironment"]
-    assert all(n.image is not None and "world" in n.image.filepath for n in envs)
+    assert all(n.image is not None and "_world" in n.image.filepath for n in envs)
     # Once the object's own maps exist, a refresh/apply binds them.
     sc.write_maps(tmp_path / "not_baked", sc.synthetic_maps())
     mat = sm.apply_sbrdf_material(ob)
@@ -317,3 +317,22 @@ def test_material_panel_draws(bpy_clean, tmp_path):
     assert sorted(drawn) == sorted(spec.label for spec in PARAMETERS)
     assert any(kind == "label" and "Maps missing" in text for kind, text in log)
     assert ("menu", "PLATELIGHT_MT_sbrdf_presets") in log
+
+
+def test_a_partial_bake_binds_the_maps_it_has(bpy_clean, tmp_path):
+    """The bake writes only the maps an object's materials read (issue 4): a folder holding
+    diffuse alone is the object's probe, not a reason to fall back to the world's maps."""
+    bpy = bpy_clean
+    bpy.context.scene.platelight.maps_dir = str(tmp_path)
+    sc.write_maps(tmp_path / "_world", sc.synthetic_maps(seed=3))
+    maps = sc.synthetic_maps()
+    sc.write_maps(tmp_path / "matte", {"diffuse": maps["diffuse"]})
+    ob = _sphere(bpy)
+    ob.platelight.probe_dir = str(tmp_path / "matte")
+    sm = _sm()
+    mat = sm.apply_sbrdf_material(ob)
+    assert mat["platelight_probe_dir"] == str(tmp_path / "matte")
+    envs = [n for n in sm.probe_node(mat).node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment"]
+    bound = {n["platelight_map"] for n in envs if n.image is not None}
+    assert bound == {"diffuse"}
+    assert all("matte" in n.image.filepath for n in envs if n.image is not None)

@@ -1,0 +1,1 @@
+"""Capture: marker/board tracking, HDR bracket merging and mirror-ball unwrapping (bpy-free)."""

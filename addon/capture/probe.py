@@ -1,0 +1,93 @@
+"""Chrome-ball brackets -> lat-long world probe: merge, find the ball, unwrap, check, repair."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..errors import PlateLightError
+from . import hdr_merge, mirror_ball
+
+
+@dataclasses.dataclass
+class ProbeResult:
+    probe: np.ndarray                 # (H, 2H, 3) float32 lat-long, design.md's convention
+    confidence: np.ndarray            # (H, 2H) 0 in the blind spot behind the ball
+    ball: mirror_ball.Ball
+    times: np.ndarray
+    response: np.ndarray              # (256, 3) RGB inverse response, value 128 -> 1
+    clipped: dict                     # solid angle and direction of texels clipped in every bracket
+    warnings: list[str]
+    repair_scale: float | None = None
+
+    def report(self) -> dict:
+        return {
+            "ball": dataclasses.asdict(self.ball),
+            "exposure_times": [float(t) for t in self.times],
+            "clipped": self.clipped,
+            "repair_scale": self.repair_scale,
+            "warnings": self.warnings,
+            "response": np.round(self.response, 6).tolist(),
+        }
+
+
+def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, height: int = 256,
+               camera_to_world=None, rotate_z_deg: float = 0.0, reflectance: float = 1.0,
+               card_box=None, card_albedo: float = 0.18, card_normal=None,
+               shared_response: bool = True, align_target=None, align_intrinsics=None) -> ProbeResult:
+    """Brackets (files) -> probe. ``camera_to_world``: the photo camera's rotation in the
+    scene's frame (e.g. from tracking a marker seen in the photo); ``rotate_z_deg`` then turns
+    the probe about +Z (a user alignment). ``align_target`` (a tracking target, with
+    ``align_intrinsics``): a marker or board seen in the brackets gives the camera rotation in
+    the target's frame, i.e. the tracked scene's (it overrides ``camera_to_world``). ``card_box`` = (x0, y0, x1, y1) pixels of a grey card
+    in the photos, used to repair light clipped in every bracket (hdr_merge.repair_clipped)."""
+    if not (np.isfinite(reflectance) and 0 < reflectance <= 1):
+        raise PlateLightError("The ball's reflectance must be in (0, 1].")
+    images, times = hdr_merge.read_brackets(paths, exposures)
+    merged = hdr_merge.merge(images, times, shared_response=shared_response)
+    if ball is None:
+        ball = mirror_ball.find_ball(merged.radiance)
+    if align_target is not None:
+        camera_to_world = camera_from_target(images, align_target, align_intrinsics)
+    rot = mirror_ball.default_camera_rotation() if camera_to_world is None else \
+        np.asarray(camera_to_world, float)[:3, :3]
+    rot = mirror_ball.rotation_z(rotate_z_deg) @ rot
+    probe, confidence = mirror_ball.unwrap(merged.radiance, ball, height, rot, reflectance)
+    clip_map, _ = mirror_ball.unwrap(merged.clipped.astype(np.float32)[..., None], ball, height, rot)
+    clipped = clip_map[..., 0] > 0.5
+    summary = hdr_merge.clipped_region_summary(clipped)
+    warnings = list(merged.warnings)
+    scale = None
+    if card_box is not None:
+        if not clipped.any():
+            warnings.append("a grey card was given but nothing is clipped in every bracket; no repair needed")
+        else:
+            x0, y0, x1, y1 = (int(round(v)) for v in card_box)
+            h, w = merged.radiance.shape[:2]
+            if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+                raise PlateLightError(f"The grey card box {tuple(card_box)} is not inside the {w}x{h} photos.")
+            card = merged.radiance[y0:y1, x0:x1].reshape(-1, 3).mean(0)
+            normal = summary["direction"] if card_normal is None else card_normal
+            probe, scale = hdr_merge.repair_clipped(probe, clipped, card, card_albedo, normal)
+            warnings.append(f"clipped light repaired from the grey card: x{scale:.2f} over its lower bound")
+    return ProbeResult(probe, confidence, ball, times, merged.response, summary, warnings, scale)
+
+
+def camera_from_target(images, target, intrinsics) -> np.ndarray:
+    """Camera_to_world of the ball photo from a marker/board seen in it: the brackets are tried
+    from the middle exposure outwards and the first one where the target tracks is used."""
+    from .tracking import Tracker, cv_pose_to_blender
+
+    if intrinsics is None:
+        raise PlateLightError("Aligning on a marker needs the camera's focal length (--focal-px or --focal-mm).")
+    tracker = Tracker(target, intrinsics)
+    middle = len(images) // 2
+    order = sorted(range(len(images)), key=lambda i: abs(i - middle))
+    for i in order:
+        det = tracker.detect(images[i])
+        if det.kind == "none":
+            continue
+        solved = tracker.solve(det)
+        if solved is not None:
+            return cv_pose_to_blender(solved[0], solved[1])
+    raise PlateLightError(f"The alignment {target.dictionary} marker was not found in any bracket.")
