@@ -182,30 +182,6 @@ def _operator_exists(bpy, name):
         return False
 
 
-def _complete_map_sets(scene, objects):
-    """Integration stop-gap (reported to the lead): the bake writes only the maps an object's
-    materials read, but the SBRDF binding accepts a folder only when all four exist. Give each
-    missing map a copy of the nearest map that was baked (the blend weight of a map the bake
-    judged unused is 0, so its content does not show)."""
-    import shutil
-
-    import bpy
-
-    from .ibl.maps import MAP_NAMES
-
-    for ob in objects:
-        folder = bpy.path.abspath(ob.platelight.probe_dir)
-        if not folder or not os.path.isdir(folder):
-            continue
-        present = [i for i, n in enumerate(MAP_NAMES) if os.path.isfile(os.path.join(folder, f"{n}.exr"))]
-        if not present:
-            continue
-        for i, name in enumerate(MAP_NAMES):
-            if i not in present:
-                nearest = MAP_NAMES[min(present, key=lambda j: abs(j - i))]
-                shutil.copyfile(os.path.join(folder, f"{nearest}.exr"), os.path.join(folder, f"{name}.exr"))
-
-
 def _bake_probes(bpy, objects, force):
     """The bake, with the world's own light-importance map. Integration note (reported): the
     bake operator caps that map at 256 columns, which for this HDRI's sun leaves fireflies on
@@ -250,7 +226,6 @@ def _apply_sbrdf_if_available(bpy, objects, timings, maps_dir):
     t0 = time.perf_counter()
     for bake_pass in range(2):
         _bake_probes(bpy, objects, force=bake_pass > 0)
-        _complete_map_sets(scene, objects)
         for ob in objects:  # bind each material to the folder its bake just wrote
             for other in scene.objects:
                 other.select_set(other == ob)

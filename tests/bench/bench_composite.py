@@ -148,7 +148,7 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path):
 def sbrdf_sphere(bpy, scene, sphere, out_path):
     """The paper's CG: the sphere's Principled settings converted to the PlateLight SBRDF, shaded
     from its own probe (baked from its centre: floor + world)."""
-    from platelight.addon.demo_ar import _bake_probes, _complete_map_sets
+    from platelight.addon.demo_ar import _bake_probes
 
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
     scene.platelight.probe_samples = PROBE_SAMPLES
@@ -157,7 +157,6 @@ def sbrdf_sphere(bpy, scene, sphere, out_path):
     sphere.select_set(True)
     assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
     _bake_probes(bpy, [sphere], force=True)  # with the world's full importance map (see demo_ar)
-    _complete_map_sets(scene, [sphere])
     assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
 
 
