@@ -1,7 +1,7 @@
 """Compositor group "PlateLight Differential": differential rendering onto the plate (Debevec 1998,
 paper section 4), with the CG's lens and tone presets.
 
-    CG'      = glare(tone(exposure(CG)))                       (CG only: the plate passes untouched)
+    CG'      = blur(glare(tone(exposure(CG))))                 (CG only: the plate passes untouched)
     ratio    = min(With / max(Without, ε), Shadow Clamp)        (ratio form; catcher pass: Without = 1)
     local    = Ratio Form ? Plate · ratio : Plate + With − Without
     Image    = CG' + (1 − α_CG) · local                         (premultiplied "over")
@@ -34,6 +34,8 @@ INPUTS = (
      "Blend of Reinhard's x/(1+x) on the CG (use when the plate is display-referred footage)"),
     ("Glare", "NodeSocketFloat", 0.0, (0.0, 1.0), "Bloom on the CG's HDR highlights"),
     ("Glare Threshold", "NodeSocketFloat", 1.0, (0.0, 1000.0), "Brightness above which the CG blooms"),
+    ("CG Blur", "NodeSocketFloat", 0.0, (0.0, 100.0),
+     "Gaussian blur of the CG (colour and alpha) in pixels, to match a soft or defocused plate"),
 )
 OUTPUTS = (
     ("Image", "NodeSocketColor", "The composite"),
@@ -135,11 +137,18 @@ def build_differential_group():
     shadows = _mix(nodes, links, "MIX", shadows_additive.outputs[2], clamped.outputs[2], location=(100, -600))
     _link_factor(links, shadows, inp["Ratio Form"])
 
+    blur = nodes.new("CompositorNodeBlur")
+    blur.location = (500, 300)
+    blur.inputs["Type"].default_value = "Gaussian"
+    links.new(cg_out.outputs["Image"], blur.inputs["Image"])
+    links.new(inp["CG Blur"], blur.inputs["Size"])
+    cg_final = blur.outputs["Image"]
+
     over = nodes.new("CompositorNodeAlphaOver")
     over.location = (500, 0)
     links.new(local.outputs[2], over.inputs["Background"])
-    links.new(cg_out.outputs["Image"], over.inputs["Foreground"])
+    links.new(cg_final, over.inputs["Foreground"])
     links.new(over.outputs["Image"], group_out.inputs["Image"])
-    links.new(cg_out.outputs["Image"], group_out.inputs["CG"])
+    links.new(cg_final, group_out.inputs["CG"])
     links.new(shadows.outputs[2], group_out.inputs["Shadows"])
     return tree

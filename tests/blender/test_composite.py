@@ -115,6 +115,9 @@ def test_sun_shadow_falls_where_the_probe_sun_says(bpy_clean, tmp_path, method):
 
 
 def _group_test_tree(bpy, scene, images, settings):
+    old = bpy.data.node_groups.get("Group Test")
+    if old is not None:
+        bpy.data.node_groups.remove(old)
     tree = bpy.data.node_groups.new("Group Test", "CompositorNodeTree")
     tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
     group = importlib.import_module(f"{support.EXT_MODULE}.node_groups.composite").build_differential_group()
@@ -176,3 +179,31 @@ def test_group_matches_numpy_reference(bpy_clean, tmp_path, form):
         local = plate * np.minimum(with_ / np.maximum(without, 1e-6), 4.0)
     expected = cg_rgb + (1 - alpha) * local
     np.testing.assert_allclose(out, expected, rtol=2e-5, atol=2e-5)
+
+
+def test_cg_blur_softens_edges_and_keeps_energy(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    add_camera(bpy, scene)
+    scene.render.resolution_x, scene.render.resolution_y = 64, 32
+    scene.render.resolution_percentage = 100
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    ops_module("composite").set_plate_colour_management(scene)
+    cg = np.zeros((32, 64, 4), np.float32)
+    cg[10:22, 20:44] = (0.8, 0.4, 0.2, 1.0)  # an opaque CG rectangle
+    files = {"Plate": tmp_path / "plate.exr", "CG": tmp_path / "cg.exr"}
+    write_exr(files["Plate"], np.full((32, 64, 3), 0.5, np.float32))
+    write_exr(files["CG"], cg)
+    results = {}
+    for blur in (0.0, 3.0):
+        _group_test_tree(bpy, scene, files, {"CG Blur": blur})
+        results[blur] = render(bpy, scene, tmp_path / f"out{blur}.exr")[..., :3]
+    sharp, soft = results[0.0], results[3.0]
+    np.testing.assert_allclose(sharp[10:22, 20:44], np.broadcast_to((0.8, 0.4, 0.2), (12, 24, 3)), atol=1e-6)
+    # blurred: the CG's energy over the plate is kept (to 2 %) and its edge spreads out
+    excess = lambda img: (img - 0.5).sum()  # noqa: E731 (the plate is 0.5 everywhere)
+    assert abs(excess(soft) - excess(sharp)) < 0.02 * abs(excess(sharp))
+    edge_sharp = (np.abs(sharp - 0.5).max(2) > 1e-3).sum()
+    edge_soft = (np.abs(soft - 0.5).max(2) > 1e-3).sum()
+    assert edge_soft > edge_sharp + 60
