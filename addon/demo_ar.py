@@ -105,7 +105,7 @@ def _camera_move(bpy, scene, frames):
     cam.data.lens = 35
     scene.collection.objects.link(cam)
     scene.camera = cam
-    target = np.array([0.1, 0.1, 0.35])
+    target = np.array([-0.3, 0.1, 0.35])
     from mathutils import Vector
 
     for frame in range(1, frames + 1):
@@ -151,7 +151,7 @@ def build_real_place(bpy, hdri_path, frames=FRAMES, size=SIZE):
     floor_mat = _material(bpy, "Paving", (0.3, 0.3, 0.3), roughness=0.85,
                           checker=(24.0, (0.34, 0.31, 0.27), (0.24, 0.23, 0.22)))
     floor = _mesh_object(bpy, scene, "Floor", "plane", (0, 0, 0), 60.0, floor_mat)
-    box = _mesh_object(bpy, scene, "Red Box", "cube", (1.35, 0.9, 0.35), 0.7,
+    box = _mesh_object(bpy, scene, "Red Box", "cube", (-1.6, 0.55, 0.35), 0.7,
                        _material(bpy, "Red Paint", (0.55, 0.04, 0.03), roughness=0.6))
     box.rotation_euler = (0, 0, math.radians(20))
     _camera_move(bpy, scene, frames)
