@@ -1,0 +1,42 @@
+"""Ground truth, small: a diffuse sphere composited onto a path-traced plate against the same
+scene path-traced with the sphere really there (the benchmark's scene at 64×36)."""
+import importlib.util
+
+import numpy as np
+
+import support
+
+
+def bench_module():
+    path = support.REPO / "tests" / "bench" / "bench_composite.py"
+    spec = importlib.util.spec_from_file_location("bench_composite_for_test", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.W, module.H = 64, 36
+    return module
+
+
+def test_composite_matches_path_traced_truth(bpy_clean, tmp_path, studio_hdris):
+    bpy = bpy_clean
+    bench = bench_module()
+    hdri = str(studio_hdris["city"])
+    material = bench.MATERIALS["diffuse"]
+    renders = {}
+    for name, with_sphere in (("truth", True), ("plate", False)):
+        scene, floor, sphere = bench.build(bpy, hdri, material)
+        scene.cycles.samples = 256
+        scene.cycles.use_denoising = False
+        sphere.hide_render = not with_sphere
+        renders[name], _ = bench.render(bpy, scene, tmp_path / f"{name}.exr")
+    truth, plate = renders["truth"], renders["plate"]
+    composite, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "cycles", 64,
+                                   tmp_path / "composite.exr")
+    obj, shadow = bench.masks(truth, plate)
+    assert obj.sum() > 30 and shadow.sum() > 30
+    peak = float(np.percentile(truth, 99.5))
+    assert bench.psnr(composite, truth, obj, peak) > 30      # measured 33.6 dB (truth's own noise)
+    assert bench.psnr(composite, truth, shadow, peak) > 35   # measured 40.4 dB
+    # the shadow really was added: the composite is much closer to the truth there than the plate
+    err_plate = np.abs(plate - truth)[shadow].mean()
+    err_comp = np.abs(composite - truth)[shadow].mean()
+    assert err_comp < 0.15 * err_plate  # measured 0.07
