@@ -12,8 +12,9 @@ for real things) and "PlateLight CG" (every other renderable object). Two method
   holdouts; "PlateLight Local" renders the phantoms with the CG indirect-only (they cast shadows
   and light, unseen); "PlateLight Local Without" renders the phantoms alone. Ratio or additive.
 
-Either way the phantoms are lit by whatever lights the scene: the world probe (path-traced,
-the reference) or lights made by platelight.lights_from_probe (fast and sharp).
+Either way the phantoms are lit by whatever lights the scene: the world probe (path-traced, the
+reference) or lamps made by platelight.lights_from_probe (sharp sun shadows; in Cycles not
+faster than the world at equal error, docs/bench/composite.md).
 The plate passes unchanged: Standard view transform, no look, exposure 0, gamma 1.
 """
 import bpy
