@@ -154,6 +154,24 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
     return result or obj.material_slots[0].material
 
 
+def follow_probe(obj, scene=None, reload=True) -> int:
+    """Rebind ``obj``'s SBRDF materials to its probe folder after a bake wrote or pointed it
+    there (reloading the maps when ``reload``); returns how many materials were rebound.
+    Without this a material applied before the bake keeps showing the old (or world) maps."""
+    scene = scene or bpy.context.scene
+    folder, _status = resolve_probe_dir(obj, scene)
+    count = 0
+    for slot in obj.material_slots:
+        material = slot.material
+        if sbrdf_node(material) is None:
+            continue
+        if not reload and material.get("platelight_probe_dir") == folder:
+            continue                       # a cache hit on a material already bound there
+        bind_probe(material, folder, label=obj.name)
+        count += 1
+    return count
+
+
 def refresh_probe_maps():
     """Reload every probe group's maps (after a bake, or when a folder switched to a sequence);
     returns how many probe groups were refreshed."""
