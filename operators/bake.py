@@ -394,6 +394,8 @@ class ProbeBake:
             if not any(name == ob.name for name, _ in self.stale):
                 ob.platelight.probe_status = "up to date"
             return
+        if not self.static:
+            layout.remove_single_frame(folder)
         if self.scene.platelight.pack_maps:
             self._pack(folder_rel, key_frame, maps, refresh=status == "baked")
         ob.platelight.probe_dir = folder_rel

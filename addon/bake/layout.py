@@ -68,6 +68,19 @@ def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:
     return removed
 
 
+def remove_single_frame(folder: str) -> list[str]:
+    """A frame-range bake supersedes a single-frame one in the same folder: delete its
+    ``diffuse.exr``... and ``bake.json``, or the binding (which prefers single files) would keep
+    showing the old static maps instead of the new sequence. Returns the files removed."""
+    removed = []
+    for filename in [map_filename(n, None) for n in MAP_NAMES] + [record_filename(None)]:
+        path = os.path.join(folder, filename)
+        if os.path.isfile(path):
+            os.unlink(path)
+            removed.append(filename)
+    return removed
+
+
 def check_writable(folder: str) -> None:
     """Create ``folder`` if needed and make sure files can be written there (one sentence if not)."""
     try:
