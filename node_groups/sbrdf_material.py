@@ -163,8 +163,8 @@ def follow_probe(obj, scene=None, reload=True) -> int:
     count = 0
     for slot in obj.material_slots:
         material = slot.material
-        if sbrdf_node(material) is None:
-            continue
+        if sbrdf_node(material) is None or probe_node(material) is None:
+            continue                       # only materials already bound to a probe follow it
         if not reload and material.get("platelight_probe_dir") == folder:
             continue                       # a cache hit on a material already bound there
         bind_probe(material, folder, label=obj.name)
