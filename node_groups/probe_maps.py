@@ -95,11 +95,15 @@ def bind_images(tree):
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
             continue
         filename = map_filename(name, first if kind == "sequence" else None) if kind != "missing" else None
+        previous = node.image
         if filename is None or not os.path.isfile(os.path.join(path, filename)):
             node.image = None                      # this map was not baked: the lobe reads black
+            _drop_dangling(previous)
             continue
         image = _load_image(os.path.join(folder, filename), kind == "sequence")
         node.image = image
+        if previous is not image:
+            _drop_dangling(previous)
         if kind == "sequence":
             user = node.image_user
             user.frame_start = first
@@ -107,6 +111,16 @@ def bind_images(tree):
             user.frame_duration = _frame_count(folder, first, name)
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
+
+
+def _drop_dangling(image):
+    """Remove an image no node uses any more whose file is gone (a frame-range bake deletes the
+    single-frame maps it supersedes; a matte object loses its glossy maps), so the .blend
+    keeps no images pointing at missing files."""
+    if image is None or image.users or image.packed_file is not None:
+        return
+    if not os.path.isfile(bpy.path.abspath(image.filepath)):
+        bpy.data.images.remove(image)
 
 
 def _load_image(filepath, sequence):
