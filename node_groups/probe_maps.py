@@ -85,6 +85,18 @@ def probe_maps_status(folder: str) -> tuple[str, int | None]:
     return "missing", None
 
 
+def missing_maps(folder: str, needed) -> list:
+    """The maps of ``needed`` that ``folder`` lacks (as single files, or as a sequence when it
+    holds one): a material switched to a glossier preset after an only-needed-maps bake reads
+    maps that were never baked, and must be told to re-bake."""
+    kind, _ = probe_maps_status(folder)
+    if kind == "missing":
+        return list(needed)
+    path = bpy.path.abspath(folder)
+    present = _present_single(path) if kind == "single" else list(_sequence_frames(path))
+    return [name for name in needed if name not in present]
+
+
 def bind_images(tree):
     """Point the group's Environment Texture nodes at the folder's maps (reloading them)."""
     folder = tree[FOLDER_KEY]
