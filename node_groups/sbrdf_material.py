@@ -11,6 +11,7 @@ import os
 import bpy
 
 from ..addon.bake.layout import WORLD_FOLDER
+from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS, SBRDFParams
 from ..addon.material.presets import preset_params
 from . import probe_maps
@@ -114,6 +115,20 @@ def bind_probe(material, probe_dir: str, label: str | None = None):
     return node
 
 
+def check_editable(obj) -> None:
+    """PlateLightError unless ``obj``'s material slots can be changed: an object linked from a
+    library, or linked mesh data holding the materials, is read-only (Blender would raise
+    half-way, leaving a new material and node groups behind)."""
+    if obj.library is not None:
+        raise PlateLightError(f"{obj.name} is linked from {obj.library.filepath}; make it local "
+                              "(Object > Relations > Make Local) before applying the SBRDF.")
+    data = obj.data
+    if data is not None and data.library is not None and (
+            not obj.material_slots or any(slot.link == "DATA" for slot in obj.material_slots)):
+        raise PlateLightError(f"The materials of {obj.name} live in its data {data.name}, linked "
+                              f"from {data.library.filepath}; make the data local first.")
+
+
 def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParams | None = None,
                          scene=None):
     """Give ``obj`` PlateLight SBRDF materials bound to its probe; returns the active one.
@@ -125,6 +140,7 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
     from .principled_nodes import read_principled
 
     scene = scene or bpy.context.scene
+    check_editable(obj)                     # before anything is created
     folder, _status = resolve_probe_dir(obj, scene)
     if preset_name is not None:
         params = preset_params(preset_name)
