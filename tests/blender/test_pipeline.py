@@ -258,9 +258,9 @@ def assert_matches(image, reference, N, min_pixels=600):
 
 
 def data_counts(bpy):
-    return {"images": sorted(i.name for i in bpy.data.images),
-            "node_groups": sorted(g.name for g in bpy.data.node_groups),
-            "materials": sorted(m.name for m in bpy.data.materials)}
+    """The file's own (not library-linked) images, node groups and materials."""
+    return {kind: sorted(d.name for d in getattr(bpy.data, kind) if d.library is None)
+            for kind in ("images", "node_groups", "materials")}
 
 
 # --------------------------------------------------------------------------- tests
@@ -421,6 +421,20 @@ def test_rerun_does_not_duplicate_and_bad_input_changes_nothing(bpy_clean, tmp_p
         bpy.ops.platelight.bake_probes(all_objects=True, force=True)
     scene.camera = camera
     assert state() == before
+    # apply_sbrdf on an object linked from a library (read-only): one sentence, nothing created.
+    library = tmp_path / "props.blend"
+    bpy.data.libraries.write(str(library), {cube.data})
+    with bpy.data.libraries.load(str(library), link=True) as (_src, dst):
+        dst.meshes = [cube.data.name]
+    linked = bpy.data.objects.new("LinkedProp", dst.meshes[0])
+    scene.collection.objects.link(linked)
+    select_only(bpy, linked)
+    with pytest.raises(RuntimeError, match="materials of LinkedProp live in its data .* linked"):
+        bpy.ops.platelight.apply_sbrdf(preset="chrome")
+    assert state() == before
+    mesh = linked.data
+    bpy.data.objects.remove(linked)
+    bpy.data.libraries.remove(mesh.library)
     # apply_sbrdf on something that cannot hold a material: poll refuses, nothing changes.
     empty = bpy.data.objects.new("Empty", None)
     scene.collection.objects.link(empty)
