@@ -331,10 +331,14 @@ def test_frame_range_bake_binds_the_sequence(bpy_clean, tmp_path, studio_hdris):
     maps = {f: read_maps(bpy, sphere, frame=f) for f in (1, 2)}
     # The cube moved from the right to the left: the maps differ a lot.
     assert np.abs(maps[1]["diffuse"] - maps[2]["diffuse"]).max() > 0.1
-    images = {}
-    for frame in (2, 1):
-        scene.frame_set(frame)
-        images[frame] = render(bpy, tmp_path, f"frame{frame}.exr")
+    # Render the range as a farm node does (an animation render: the sequence images advance).
+    from platelight.addon.exr_io import read_exr
+
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.filepath = str(tmp_path / "anim_####")
+    bpy.ops.render.render(animation=True)
+    images = {f: read_exr(tmp_path / f"anim_{f:04d}.exr", "RGBA").astype(np.float64) for f in (1, 2)}
+    for frame in (1, 2):
         assert_matches(images[frame], sbrdf_reference(maps[frame], p), N)
     # Frame 2's render is not frame 1's maps (the comparison can tell the frames apart).
     excess, rel, _ = compare(images[2], sbrdf_reference(maps[1], p), N)
@@ -443,6 +447,28 @@ def test_rerun_does_not_duplicate_and_bad_input_changes_nothing(bpy_clean, tmp_p
     bpy.data.objects.remove(empty)
     assert state() == before
     assert {f: os.path.getmtime(os.path.join(folder, f)) for f in os.listdir(folder)} == maps_before
+
+
+def test_packed_maps_render_after_the_blend_moves(bpy_clean, tmp_path, studio_hdris):
+    """Pack Maps on: the .blend alone (no maps folder next to it) renders the same on a farm node."""
+    import shutil
+
+    bpy = bpy_clean
+    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["city"])
+    scene.platelight.pack_maps = True
+    select_only(bpy, sphere)
+    assert bpy.ops.platelight.apply_sbrdf(preset="polished_paint") == {"FINISHED"}
+    assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
+    maps, p, N = read_maps(bpy, sphere), sbrdf_params(bpy, sphere), sphere_normals()
+    bpy.ops.wm.save_mainfile()
+    farm = tmp_path / "farm"
+    farm.mkdir()
+    shutil.copy(tmp_path / "shot.blend", farm / "shot.blend")
+    shutil.copy(tmp_path / "world.exr", farm / "world.exr")
+    bpy.ops.wm.open_mainfile(filepath=str(farm / "shot.blend"))
+    assert not (farm / "platelight_maps").exists()
+    image = render(bpy, farm, "farm.exr")
+    assert_matches(image, sbrdf_reference(maps, p), N)
 
 
 def test_diffuse_object_gets_only_the_diffuse_map(bpy_clean, tmp_path, studio_hdris):
