@@ -22,6 +22,7 @@ from .sbrdf import LOOKUP_SOCKETS
 GROUP_PREFIX = "PlateLight Probe "
 FOLDER_KEY = "platelight_probe_dir"
 VERSION = 1
+SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
            ("Refraction Term", "NodeSocketColor"))
@@ -117,10 +118,13 @@ def bind_images(tree):
         if previous is not image:
             _drop_dangling(previous)
         if kind == "sequence":
+            # Scene frame F reads <map>_F.exr, whatever frames exist when binding: farm nodes
+            # bake parts of the range in parallel, and a duration counted from the files
+            # present made later frames hold the last one seen (silently wrong maps).
             user = node.image_user
-            user.frame_start = first
-            user.frame_offset = first - 1
-            user.frame_duration = _frame_count(folder, first, name)
+            user.frame_start = 1
+            user.frame_offset = 0
+            user.frame_duration = SEQUENCE_FRAMES
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
 
@@ -146,14 +150,6 @@ def _load_image(filepath, sequence):
     image.source = "SEQUENCE" if sequence else "FILE"
     image.colorspace_settings.name = "Linear Rec.709"
     return image
-
-
-def _frame_count(folder, first, name="diffuse"):
-    path = bpy.path.abspath(folder)
-    count = 0
-    while os.path.isfile(os.path.join(path, map_filename(name, first + count))):
-        count += 1
-    return max(count, 1)
 
 
 def _folder_key(folder: str) -> str:
