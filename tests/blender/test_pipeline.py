@@ -28,6 +28,7 @@ import sys
 import numpy as np
 import pytest
 
+import support
 from support import EXT_MODULE
 
 RES_X, RES_Y = 96, 64
@@ -91,7 +92,11 @@ def _sbrdf(maps, N, p):
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
     n2 = p["glossiness"] + (1 - p["glossiness"]) * f
     g2 = g + (1 - g) * f
-    lr = np.asarray(p["diffuse_albedo"]) * _lookup(maps["diffuse"], N)
+    if "diffuse" in maps:
+        lr = np.asarray(p["diffuse_albedo"]) * _lookup(maps["diffuse"], N)
+    else:                                              # a mirror's bake has no diffuse map
+        assert not any(p["diffuse_albedo"]), "the diffuse map is needed but was not baked"
+        lr = 0.0
     blend = 0.0
     for k, name in enumerate(MAPS):
         weight = np.maximum(0.0, 1.0 - np.abs(3.0 * n2 - k))
@@ -99,7 +104,8 @@ def _sbrdf(maps, N, p):
             blend = blend + weight * _lookup(maps[name], peak)
         else:                                          # a map the bake did not write: black
             assert np.all(weight[np.isfinite(weight)] == 0), f"{name} is needed but was not baked"
-    heights = {"N": maps["diffuse"].shape[0], "peak": max(m.shape[0] for m in maps.values())}
+    top = max(m.shape[0] for m in maps.values())
+    heights = {"N": maps["diffuse"].shape[0] if "diffuse" in maps else top, "peak": top}
     return lr + rho_s * g2 * blend, {"N": (N, heights["N"]), "peak": (peak, heights["peak"])}
 
 
@@ -447,6 +453,40 @@ def test_rerun_does_not_duplicate_and_bad_input_changes_nothing(bpy_clean, tmp_p
     bpy.data.objects.remove(empty)
     assert state() == before
     assert {f: os.path.getmtime(os.path.join(folder, f)) for f in os.listdir(folder)} == maps_before
+
+
+def test_farm_split_bake_renders_every_frame(bpy_clean, tmp_path, studio_hdris):
+    """The artist applies the SBRDF and saves; two farm nodes bake halves of the range with the
+    CLI, the first to finish saves the .blend (it knows only its own frames); a render node
+    renders frame 3, from the half the saving node never saw."""
+    bpy = bpy_clean
+    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["interior"],
+                                             cube_enabled=False)
+    for frame, y in ((1, -1.5), (4, 1.5)):        # beside the sphere, from front to back
+        cube.location = (1.4, y, 0.5)
+        cube.keyframe_insert("location", frame=frame)
+    scene.frame_set(1)
+    select_only(bpy, sphere)
+    assert bpy.ops.platelight.apply_sbrdf(preset="chrome") == {"FINISHED"}
+    p = sbrdf_params(bpy, sphere)
+    blend = tmp_path / "shot.blend"
+    bpy.ops.wm.save_mainfile()
+    first = support.run_cli("bake", blend, "--frames", "1-4", "--part", "1/2", "--save")
+    assert first.returncode == 0, first.stderr
+    second = support.run_cli("bake", blend, "--frames", "1-4", "--part", "2/2")
+    assert second.returncode == 0, second.stderr
+
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    sphere = bpy.data.objects["Sphere"]
+    scene = bpy.context.scene
+    N = sphere_normals()
+    images = {}
+    for frame in (3, 2):
+        scene.frame_set(frame)
+        images[frame] = render(bpy, tmp_path, f"farm{frame}.exr")
+        assert_matches(images[frame], sbrdf_reference(read_maps(bpy, sphere, frame=frame), p), N)
+    excess, _, _ = compare(images[3], sbrdf_reference(read_maps(bpy, sphere, frame=2), p), N)
+    assert excess.max() > 0.05                     # frame 2's maps would be seen as wrong
 
 
 def test_packed_maps_render_after_the_blend_moves(bpy_clean, tmp_path, studio_hdris):
