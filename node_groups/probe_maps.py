@@ -31,7 +31,8 @@ OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
 def find_probe_group(folder: str):
     key = _folder_key(folder)
     for tree in bpy.data.node_groups:
-        if tree.bl_idname == "ShaderNodeTree" and tree.get(FOLDER_KEY) == key:
+        if tree.bl_idname == "ShaderNodeTree" and FOLDER_KEY in tree \
+                and _folder_key(tree[FOLDER_KEY]) == key:
             return tree
     return None
 
@@ -153,8 +154,12 @@ def _load_image(filepath, sequence):
 
 
 def _folder_key(folder: str) -> str:
+    """One spelling per folder: the bake writes '//platelight_maps/_world/' where the world
+    fallback said '//platelight_maps/_world', and the two made two probe groups."""
     folder = folder or ""
-    return folder if folder.startswith("//") else os.path.normpath(os.path.abspath(folder))
+    if folder.startswith("//"):
+        return "//" + os.path.normpath(folder[2:]).replace(os.sep, "/") if folder[2:] else "//"
+    return os.path.normpath(os.path.abspath(folder))
 
 
 def _build(tree):
