@@ -489,6 +489,25 @@ def test_farm_split_bake_renders_every_frame(bpy_clean, tmp_path, studio_hdris):
     assert excess.max() > 0.05                     # frame 2's maps would be seen as wrong
 
 
+def test_world_only_object_shares_the_world_maps(bpy_clean, tmp_path, studio_hdris):
+    """A sphere alone under the world: the bake points it at _world/, the material applied
+    before the bake follows there without a second probe group, and renders those maps."""
+    bpy = bpy_clean
+    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["sunrise"])
+    for ob in (cube, plane):
+        bpy.data.objects.remove(ob)
+    select_only(bpy, sphere)
+    assert bpy.ops.platelight.apply_sbrdf(preset="marble") == {"FINISHED"}
+    assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
+    assert sphere.platelight.probe_dir == "//platelight_maps/_world/"
+    assert [g.name for g in bpy.data.node_groups if g.name.startswith("PlateLight Probe")] == [
+        "PlateLight Probe Sphere"]
+    maps, p = read_maps(bpy, sphere), sbrdf_params(bpy, sphere)
+    assert maps["diffuse"].shape == (16, 32, 3)        # world maps: full default sizes
+    image = render(bpy, tmp_path, "world_only.exr")
+    assert_matches(image, sbrdf_reference(maps, p), sphere_normals())
+
+
 def test_packed_maps_render_after_the_blend_moves(bpy_clean, tmp_path, studio_hdris):
     """Pack Maps on: the .blend alone (no maps folder next to it) renders the same on a farm node."""
     import shutil
