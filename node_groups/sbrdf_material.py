@@ -10,7 +10,7 @@ import os
 
 import bpy
 
-from ..addon.bake.layout import WORLD_FOLDER
+from ..addon.bake.layout import DEFAULT_MAPS_DIR, WORLD_FOLDER, object_maps_dir
 from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS, SBRDFParams
 from ..addon.material.presets import preset_params
@@ -63,12 +63,14 @@ def write_params(material, params: SBRDFParams) -> None:
 def world_maps_dir(scene) -> str:
     """Where the world probe's maps live: <scene maps folder>/_world (fallback for objects
     whose own maps are missing)."""
-    return os.path.join(scene.platelight.maps_dir or "//platelight_maps", WORLD_SUBDIR)
+    return os.path.join(scene.platelight.maps_dir or DEFAULT_MAPS_DIR, WORLD_SUBDIR)
 
 
 def resolve_probe_dir(obj, scene) -> tuple[str, str]:
-    """(folder to bind, status sentence) for ``obj``: its own maps, else the world's."""
-    own = obj.platelight.probe_dir
+    """(folder to bind, status sentence) for ``obj``: its own maps (the recorded folder, else
+    the one a bake writes to, which a farm bake fills without saving the .blend), else the
+    world's."""
+    own = obj.platelight.probe_dir or object_maps_dir(scene.platelight.maps_dir, obj.name)
     kind, _ = probe_maps.probe_maps_status(own)
     if kind != "missing":
         return own, f"Probe maps: {kind} in {own}"
@@ -188,9 +190,13 @@ def follow_probe(obj, scene=None, reload=True) -> int:
     return count
 
 
-def refresh_probe_maps():
-    """Reload every probe group's maps (after a bake, or when a folder switched to a sequence);
-    returns how many probe groups were refreshed."""
+def refresh_probe_maps(scene=None):
+    """Rebind every SBRDF material of the scene's objects to the folder its maps are in now
+    (a render node opening a .blend whose maps were baked elsewhere), then reload every probe
+    group's maps; returns how many probe groups were refreshed."""
+    scene = scene or bpy.context.scene
+    for obj in scene.objects:
+        follow_probe(obj, scene, reload=False)
     count = 0
     for tree in bpy.data.node_groups:
         if tree.bl_idname == "ShaderNodeTree" and probe_maps.FOLDER_KEY in tree:

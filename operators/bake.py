@@ -111,7 +111,7 @@ class ProbeBake:
 
     # ---- paths
     def maps_root(self):
-        maps_dir = self.scene.platelight.maps_dir or "//platelight_maps"
+        maps_dir = self.scene.platelight.maps_dir or layout.DEFAULT_MAPS_DIR
         if maps_dir.startswith("//") and not bpy.data.filepath:
             raise PlateLightError("Save the .blend file first: the maps folder is relative to it "
                                   f"({maps_dir}); or set an absolute Maps Folder.")

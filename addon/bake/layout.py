@@ -13,6 +13,7 @@ from ..fileio import write_json_atomic
 from ..ibl.maps import MAP_NAMES, map_filename
 
 WORLD_FOLDER = "_world"
+DEFAULT_MAPS_DIR = "//platelight_maps"   # next to the .blend (scene.platelight.maps_dir's default)
 _UNSAFE = re.compile(r"[^\w.-]+")
 
 
@@ -22,6 +23,12 @@ def folder_name(object_name: str) -> str:
     and it never starts with '.' or '_' (the world's folder and hidden files)."""
     name = _UNSAFE.sub("_", object_name).strip("._ ") or "object"
     return name[:100]
+
+
+def object_maps_dir(maps_dir: str, object_name: str) -> str:
+    """The folder a bake writes an object's maps to (Blender path, '/'-terminated), also where a
+    material looks for them before the object records a bake (farm bakes without --save)."""
+    return (maps_dir or DEFAULT_MAPS_DIR).rstrip("/\\") + "/" + folder_name(object_name) + "/"
 
 
 def record_filename(frame: int | None) -> str:
