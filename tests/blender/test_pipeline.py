@@ -471,6 +471,7 @@ def test_farm_split_bake_renders_every_frame(bpy_clean, tmp_path, studio_hdris):
     p = sbrdf_params(bpy, sphere)
     blend = tmp_path / "shot.blend"
     bpy.ops.wm.save_mainfile()
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "artist.blend"), copy=True)  # never baked
     first = support.run_cli("bake", blend, "--frames", "1-4", "--part", "1/2", "--save")
     assert first.returncode == 0, first.stderr
     second = support.run_cli("bake", blend, "--frames", "1-4", "--part", "2/2")
@@ -487,6 +488,17 @@ def test_farm_split_bake_renders_every_frame(bpy_clean, tmp_path, studio_hdris):
         assert_matches(images[frame], sbrdf_reference(read_maps(bpy, sphere, frame=frame), p), N)
     excess, _, _ = compare(images[3], sbrdf_reference(read_maps(bpy, sphere, frame=2), p), N)
     assert excess.max() > 0.05                     # frame 2's maps would be seen as wrong
+
+    # A render node given the artist's file (no node saved into it): one refresh finds the
+    # maps in the object's default folder and frame 3 renders right.
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "artist.blend"))
+    sphere = bpy.data.objects["Sphere"]
+    assert sphere.platelight.probe_dir == ""
+    assert bpy.ops.platelight.refresh_sbrdf_maps() == {"FINISHED"}
+    bpy.context.scene.frame_set(3)
+    sphere.platelight.probe_dir = "//platelight_maps/Sphere/"     # only so read_maps finds them
+    image = render(bpy, tmp_path, "artist3.exr")
+    assert_matches(image, sbrdf_reference(read_maps(bpy, sphere, frame=3), p), N)
 
 
 def test_world_only_object_shares_the_world_maps(bpy_clean, tmp_path, studio_hdris):
