@@ -15,6 +15,7 @@ import os
 
 import bpy
 
+from ..addon.bake.layout import WORLD_FOLDER
 from ..addon.ibl.maps import MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
@@ -43,7 +44,9 @@ def ensure_probe_group(folder: str, label: str | None = None):
     key = _folder_key(folder)
     tree = find_probe_group(folder)
     if tree is None:
-        label = label or os.path.basename(os.path.normpath(key)) or "World"
+        folder_name = os.path.basename(os.path.normpath(key))
+        # The world's maps are shared by every world-only object: not named after the first one.
+        label = "World" if folder_name == WORLD_FOLDER else (label or folder_name or "World")
         tree = bpy.data.node_groups.new(GROUP_PREFIX + label, "ShaderNodeTree")
         tree[FOLDER_KEY] = key
     if tree.get(VERSION_KEY) != VERSION or len(tree.nodes) <= 2:
