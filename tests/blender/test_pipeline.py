@@ -513,7 +513,7 @@ def test_world_only_object_shares_the_world_maps(bpy_clean, tmp_path, studio_hdr
     assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
     assert sphere.platelight.probe_dir == "//platelight_maps/_world/"
     assert [g.name for g in bpy.data.node_groups if g.name.startswith("PlateLight Probe")] == [
-        "PlateLight Probe Sphere"]
+        "PlateLight Probe World"]
     maps, p = read_maps(bpy, sphere), sbrdf_params(bpy, sphere)
     assert maps["diffuse"].shape == (16, 32, 3)        # world maps: full default sizes
     image = render(bpy, tmp_path, "world_only.exr")
