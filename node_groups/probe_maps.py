@@ -15,6 +15,7 @@ import os
 
 import bpy
 
+from ..addon.bake.layout import WORLD_FOLDER
 from ..addon.ibl.maps import MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
@@ -22,6 +23,7 @@ from .sbrdf import LOOKUP_SOCKETS
 GROUP_PREFIX = "PlateLight Probe "
 FOLDER_KEY = "platelight_probe_dir"
 VERSION = 1
+SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
            ("Refraction Term", "NodeSocketColor"))
@@ -30,7 +32,8 @@ OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
 def find_probe_group(folder: str):
     key = _folder_key(folder)
     for tree in bpy.data.node_groups:
-        if tree.bl_idname == "ShaderNodeTree" and tree.get(FOLDER_KEY) == key:
+        if tree.bl_idname == "ShaderNodeTree" and FOLDER_KEY in tree \
+                and _folder_key(tree[FOLDER_KEY]) == key:
             return tree
     return None
 
@@ -41,7 +44,9 @@ def ensure_probe_group(folder: str, label: str | None = None):
     key = _folder_key(folder)
     tree = find_probe_group(folder)
     if tree is None:
-        label = label or os.path.basename(os.path.normpath(key)) or "World"
+        folder_name = os.path.basename(os.path.normpath(key))
+        # The world's maps are shared by every world-only object: not named after the first one.
+        label = "World" if folder_name == WORLD_FOLDER else (label or folder_name or "World")
         tree = bpy.data.node_groups.new(GROUP_PREFIX + label, "ShaderNodeTree")
         tree[FOLDER_KEY] = key
     if tree.get(VERSION_KEY) != VERSION or len(tree.nodes) <= 2:
@@ -85,6 +90,18 @@ def probe_maps_status(folder: str) -> tuple[str, int | None]:
     return "missing", None
 
 
+def missing_maps(folder: str, needed) -> list:
+    """The maps of ``needed`` that ``folder`` lacks (as single files, or as a sequence when it
+    holds one): a material switched to a glossier preset after an only-needed-maps bake reads
+    maps that were never baked, and must be told to re-bake."""
+    kind, _ = probe_maps_status(folder)
+    if kind == "missing":
+        return list(needed)
+    path = bpy.path.abspath(folder)
+    present = _present_single(path) if kind == "single" else list(_sequence_frames(path))
+    return [name for name in needed if name not in present]
+
+
 def bind_images(tree):
     """Point the group's Environment Texture nodes at the folder's maps (reloading them)."""
     folder = tree[FOLDER_KEY]
@@ -95,18 +112,35 @@ def bind_images(tree):
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
             continue
         filename = map_filename(name, first if kind == "sequence" else None) if kind != "missing" else None
+        previous = node.image
         if filename is None or not os.path.isfile(os.path.join(path, filename)):
             node.image = None                      # this map was not baked: the lobe reads black
+            _drop_dangling(previous)
             continue
         image = _load_image(os.path.join(folder, filename), kind == "sequence")
         node.image = image
+        if previous is not image:
+            _drop_dangling(previous)
         if kind == "sequence":
+            # Scene frame F reads <map>_F.exr, whatever frames exist when binding: farm nodes
+            # bake parts of the range in parallel, and a duration counted from the files
+            # present made later frames hold the last one seen (silently wrong maps).
             user = node.image_user
-            user.frame_start = first
-            user.frame_offset = first - 1
-            user.frame_duration = _frame_count(folder, first, name)
+            user.frame_start = 1
+            user.frame_offset = 0
+            user.frame_duration = SEQUENCE_FRAMES
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
+
+
+def _drop_dangling(image):
+    """Remove an image no node uses any more whose file is gone (a frame-range bake deletes the
+    single-frame maps it supersedes; a matte object loses its glossy maps), so the .blend
+    keeps no images pointing at missing files."""
+    if image is None or image.users or image.packed_file is not None:
+        return
+    if not os.path.isfile(bpy.path.abspath(image.filepath)):
+        bpy.data.images.remove(image)
 
 
 def _load_image(filepath, sequence):
@@ -122,17 +156,13 @@ def _load_image(filepath, sequence):
     return image
 
 
-def _frame_count(folder, first, name="diffuse"):
-    path = bpy.path.abspath(folder)
-    count = 0
-    while os.path.isfile(os.path.join(path, map_filename(name, first + count))):
-        count += 1
-    return max(count, 1)
-
-
 def _folder_key(folder: str) -> str:
+    """One spelling per folder: the bake writes '//platelight_maps/_world/' where the world
+    fallback said '//platelight_maps/_world', and the two made two probe groups."""
     folder = folder or ""
-    return folder if folder.startswith("//") else os.path.normpath(os.path.abspath(folder))
+    if folder.startswith("//"):
+        return "//" + os.path.normpath(folder[2:]).replace(os.sep, "/") if folder[2:] else "//"
+    return os.path.normpath(os.path.abspath(folder))
 
 
 def _build(tree):

@@ -10,7 +10,8 @@ import os
 
 import bpy
 
-from ..addon.bake.layout import WORLD_FOLDER
+from ..addon.bake.layout import DEFAULT_MAPS_DIR, WORLD_FOLDER, object_maps_dir
+from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS, SBRDFParams
 from ..addon.material.presets import preset_params
 from . import probe_maps
@@ -62,12 +63,14 @@ def write_params(material, params: SBRDFParams) -> None:
 def world_maps_dir(scene) -> str:
     """Where the world probe's maps live: <scene maps folder>/_world (fallback for objects
     whose own maps are missing)."""
-    return os.path.join(scene.platelight.maps_dir or "//platelight_maps", WORLD_SUBDIR)
+    return os.path.join(scene.platelight.maps_dir or DEFAULT_MAPS_DIR, WORLD_SUBDIR)
 
 
 def resolve_probe_dir(obj, scene) -> tuple[str, str]:
-    """(folder to bind, status sentence) for ``obj``: its own maps, else the world's."""
-    own = obj.platelight.probe_dir
+    """(folder to bind, status sentence) for ``obj``: its own maps (the recorded folder, else
+    the one a bake writes to, which a farm bake fills without saving the .blend), else the
+    world's."""
+    own = obj.platelight.probe_dir or object_maps_dir(scene.platelight.maps_dir, obj.name)
     kind, _ = probe_maps.probe_maps_status(own)
     if kind != "missing":
         return own, f"Probe maps: {kind} in {own}"
@@ -114,6 +117,20 @@ def bind_probe(material, probe_dir: str, label: str | None = None):
     return node
 
 
+def check_editable(obj) -> None:
+    """PlateLightError unless ``obj``'s material slots can be changed: an object linked from a
+    library, or linked mesh data holding the materials, is read-only (Blender would raise
+    half-way, leaving a new material and node groups behind)."""
+    if obj.library is not None:
+        raise PlateLightError(f"{obj.name} is linked from {obj.library.filepath}; make it local "
+                              "(Object > Relations > Make Local) before applying the SBRDF.")
+    data = obj.data
+    if data is not None and data.library is not None and (
+            not obj.material_slots or any(slot.link == "DATA" for slot in obj.material_slots)):
+        raise PlateLightError(f"The materials of {obj.name} live in its data {data.name}, linked "
+                              f"from {data.library.filepath}; make the data local first.")
+
+
 def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParams | None = None,
                          scene=None):
     """Give ``obj`` PlateLight SBRDF materials bound to its probe; returns the active one.
@@ -125,6 +142,7 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
     from .principled_nodes import read_principled
 
     scene = scene or bpy.context.scene
+    check_editable(obj)                     # before anything is created
     folder, _status = resolve_probe_dir(obj, scene)
     if preset_name is not None:
         params = preset_params(preset_name)
@@ -154,9 +172,31 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
     return result or obj.material_slots[0].material
 
 
-def refresh_probe_maps():
-    """Reload every probe group's maps (after a bake, or when a folder switched to a sequence);
-    returns how many probe groups were refreshed."""
+def follow_probe(obj, scene=None, reload=True) -> int:
+    """Rebind ``obj``'s SBRDF materials to its probe folder after a bake wrote or pointed it
+    there (reloading the maps when ``reload``); returns how many materials were rebound.
+    Without this a material applied before the bake keeps showing the old (or world) maps."""
+    scene = scene or bpy.context.scene
+    folder, _status = resolve_probe_dir(obj, scene)
+    count = 0
+    for slot in obj.material_slots:
+        material = slot.material
+        if sbrdf_node(material) is None or probe_node(material) is None:
+            continue                       # only materials already bound to a probe follow it
+        if not reload and material.get("platelight_probe_dir") == folder:
+            continue                       # a cache hit on a material already bound there
+        bind_probe(material, folder, label=obj.name)
+        count += 1
+    return count
+
+
+def refresh_probe_maps(scene=None):
+    """Rebind every SBRDF material of the scene's objects to the folder its maps are in now
+    (a render node opening a .blend whose maps were baked elsewhere), then reload every probe
+    group's maps; returns how many probe groups were refreshed."""
+    scene = scene or bpy.context.scene
+    for obj in scene.objects:
+        follow_probe(obj, scene, reload=False)
     count = 0
     for tree in bpy.data.node_groups:
         if tree.bl_idname == "ShaderNodeTree" and probe_maps.FOLDER_KEY in tree:

@@ -107,10 +107,11 @@ class ProbeBake:
         self._describer = Describer()
         self._bounds = {}
         self._render_results = None
+        self._bound = {}                         # object name -> (object, maps rewritten?)
 
     # ---- paths
     def maps_root(self):
-        maps_dir = self.scene.platelight.maps_dir or "//platelight_maps"
+        maps_dir = self.scene.platelight.maps_dir or layout.DEFAULT_MAPS_DIR
         if maps_dir.startswith("//") and not bpy.data.filepath:
             raise PlateLightError("Save the .blend file first: the maps folder is relative to it "
                                   f"({maps_dir}); or set an absolute Maps Folder.")
@@ -393,9 +394,12 @@ class ProbeBake:
             if not any(name == ob.name for name, _ in self.stale):
                 ob.platelight.probe_status = "up to date"
             return
+        if not self.static:
+            layout.remove_single_frame(folder)
         if self.scene.platelight.pack_maps:
             self._pack(folder_rel, key_frame, maps, refresh=status == "baked")
         ob.platelight.probe_dir = folder_rel
+        self._note_bound(ob, status == "baked")
         ob.platelight.probe_hash = digest
         ob.platelight.probe_status = status if self.static else f"{status} (frames {self.frames[0]}-{self.frames[-1]})"
 
@@ -451,8 +455,22 @@ class ProbeBake:
             self._pack(folder_rel, None, MAP_NAMES, refresh=not cached)
         for ob in self.world_only:
             ob.platelight.probe_dir = folder_rel
+            self._note_bound(ob, not cached)
             ob.platelight.probe_hash = digest
             ob.platelight.probe_status = "world maps (sees only the world)"
+
+    def _note_bound(self, ob, rewritten):
+        _, before = self._bound.get(ob.name, (ob, False))
+        self._bound[ob.name] = (ob, before or rewritten)
+
+    def _follow_materials(self):
+        """Materials follow the bake: SBRDF materials of the objects just baked are (re)bound
+        to their probe folders and their maps reloaded (issue 5: re-bakes need no re-apply)."""
+        from ..node_groups.sbrdf_material import follow_probe
+
+        for ob, rewritten in self._bound.values():
+            follow_probe(ob, self.scene, reload=rewritten)
+        self._bound = {}
 
     def cancel(self):
         """Stop after the current step; maps already written stay (each file was replaced whole)."""
@@ -484,6 +502,7 @@ class ProbeBake:
             self._tmpdir = None
         if errors:
             self.warnings.append("Some render settings could not be restored: " + "; ".join(errors))
+        self._follow_materials()
 
     @property
     def progress(self):

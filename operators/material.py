@@ -23,6 +23,16 @@ def _can_hold_materials(obj) -> bool:
     return obj is not None and obj.type in {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 
 
+def _maps_not_baked(obj, folder):
+    """Maps the object's materials now read that its probe folder lacks ([] when all there)."""
+    from ..node_groups.probe_maps import missing_maps
+    from .probe_inputs import maps_for
+
+    if not obj.platelight.probe_dir or folder != obj.platelight.probe_dir:
+        return []                      # no own bake yet: the status line already says so
+    return missing_maps(folder, maps_for(obj))
+
+
 def _active_sbrdf_material(context):
     material = getattr(context, "material", None) or (
         context.object.active_material if context.object else None)
@@ -52,9 +62,14 @@ class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
         except PlateLightError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
-        _folder, status = sm.resolve_probe_dir(obj, context.scene)
+        folder, status = sm.resolve_probe_dir(obj, context.scene)
         level = {"WARNING"} if "missing" in status else {"INFO"}
         self.report(level, f"{material.name}: {status}")
+        absent = _maps_not_baked(obj, folder)
+        if absent:
+            self.report({"WARNING"}, f"{material.name} reads the {', '.join(absent)} map(s), which "
+                        "the last bake did not write (it baked only what the old material read): "
+                        "bake the probes again")
         return {"FINISHED"}
 
 

@@ -13,6 +13,7 @@ from ..fileio import write_json_atomic
 from ..ibl.maps import MAP_NAMES, map_filename
 
 WORLD_FOLDER = "_world"
+DEFAULT_MAPS_DIR = "//platelight_maps"   # next to the .blend (scene.platelight.maps_dir's default)
 _UNSAFE = re.compile(r"[^\w.-]+")
 
 
@@ -22,6 +23,12 @@ def folder_name(object_name: str) -> str:
     and it never starts with '.' or '_' (the world's folder and hidden files)."""
     name = _UNSAFE.sub("_", object_name).strip("._ ") or "object"
     return name[:100]
+
+
+def object_maps_dir(maps_dir: str, object_name: str) -> str:
+    """The folder a bake writes an object's maps to (Blender path, '/'-terminated), also where a
+    material looks for them before the object records a bake (farm bakes without --save)."""
+    return (maps_dir or DEFAULT_MAPS_DIR).rstrip("/\\") + "/" + folder_name(object_name) + "/"
 
 
 def record_filename(frame: int | None) -> str:
@@ -65,6 +72,19 @@ def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:
         if name not in keep and os.path.isfile(path):
             os.unlink(path)
             removed.append(name)
+    return removed
+
+
+def remove_single_frame(folder: str) -> list[str]:
+    """A frame-range bake supersedes a single-frame one in the same folder: delete its
+    ``diffuse.exr``... and ``bake.json``, or the binding (which prefers single files) would keep
+    showing the old static maps instead of the new sequence. Returns the files removed."""
+    removed = []
+    for filename in [map_filename(n, None) for n in MAP_NAMES] + [record_filename(None)]:
+        path = os.path.join(folder, filename)
+        if os.path.isfile(path):
+            os.unlink(path)
+            removed.append(filename)
     return removed
 
 
