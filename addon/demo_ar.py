@@ -224,13 +224,8 @@ def _apply_sbrdf_if_available(bpy, objects, timings, maps_dir):
     # the second it sees them shaded by their first probes (one bounce of CG-to-CG reflection,
     # as the paper iterates).
     t0 = time.perf_counter()
-    for bake_pass in range(2):
+    for bake_pass in range(2):  # the materials follow each bake (the bake rebinds them)
         _bake_probes(bpy, objects, force=bake_pass > 0)
-        for ob in objects:  # bind each material to the folder its bake just wrote
-            for other in scene.objects:
-                other.select_set(other == ob)
-            bpy.context.view_layer.objects.active = ob
-            bpy.ops.platelight.apply_sbrdf(preset="NONE")
     timings["bake_probes_s"] = time.perf_counter() - t0
     return True
 
