@@ -87,3 +87,12 @@ def test_paper_directions_are_stratified_and_uniform():
     # Same seed, same directions; different seed, different jitter.
     np.testing.assert_array_equal(d, sh.paper_directions(4096, seed=1))
     assert not np.allclose(d, sh.paper_directions(4096, seed=2))
+
+
+def test_lobe_degree_keeps_odd_factors_of_even_exponents():
+    """s = 8: λ_10 vanishes exactly but λ_11 does not; the series must not stop at 10."""
+    from platelight.addon.ibl import maps
+    factors = sh.lobe_factors(8.0, 40)
+    assert abs(factors[10]) < 1e-12 and abs(factors[11]) > 1e-5
+    degree = maps.lobe_lmax(8.0, 511)
+    assert np.all(np.abs(factors[degree + 1:]) < maps.LOBE_CUTOFF) and degree >= 19

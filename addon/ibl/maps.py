@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
+from functools import lru_cache
 
 import numpy as np
 
@@ -96,11 +97,15 @@ def prepare_environment(env: np.ndarray, name: str = "environment map") -> tuple
     return env, warnings
 
 
+@lru_cache(maxsize=64)
 def lobe_lmax(exponent: float, limit: int) -> int:
-    """Lowest degree at which the Phong lobe's SH factors have fallen below LOBE_CUTOFF."""
-    factors = np.abs(sh.lobe_factors(exponent, limit))
-    small = np.nonzero(factors < LOBE_CUTOFF)[0]
-    return int(small[0]) if small.size else limit
+    """Degree beyond which every SH factor of the Phong lobe stays below LOBE_CUTOFF.
+
+    Not the first small factor: for an even integer s the even factors above s vanish exactly
+    while the odd ones only decay polynomially (s = 8: λ_10 = 0 but λ_11 ≈ −1e-4)."""
+    factors = np.abs(sh.lobe_factors(float(exponent), min(limit, 256)))
+    large = np.nonzero(factors >= LOBE_CUTOFF)[0]
+    return int(large[-1]) if large.size else 0
 
 
 def _max_lmax(height: int) -> int:

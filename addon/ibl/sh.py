@@ -160,6 +160,7 @@ def project_paper(image: np.ndarray, lmax: int, samples: int = 4096, seed: int |
     return coeffs * (4.0 * np.pi / dirs.shape[0])
 
 
+@lru_cache(maxsize=64)
 def lobe_factors(exponent: float, lmax: int) -> np.ndarray:
     """λ_l of the normalised Phong lobe (s+1)/(2π)·max(0, t)^s: λ_l = (s+1)∫₀¹ t^s P_l(t) dt,
     so that convolving Y_lm gives λ_l·Y_lm (Funk–Hecke). s = 1 is the clamped cosine / π
@@ -176,6 +177,7 @@ def lobe_factors(exponent: float, lmax: int) -> np.ndarray:
     for l in range(2, lmax + 1):
         p_prev, p = p, ((2 * l - 1) * t * p - (l - 1) * p_prev) / l
         out[l] = (wt * p).sum()
+    out.setflags(write=False)          # cached: callers share it
     return out
 
 
