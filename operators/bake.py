@@ -35,10 +35,10 @@ PROBE_CAMERA = "PlateLight Probe Camera"
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
-# Cycles builds the world's light-importance map at each render session: at the default 1024
-# columns that alone took 0.7-2.7 s on these 2 shared cores, the probe render 0.1-0.5 s. 256
-# columns is enough to find a sun for the few samples a probe takes (importance sampling only
-# changes noise, not the mean; docs/bench/bake.md measures the error).
+# Cycles builds the world's light-importance map at each render session. Capping it at 256
+# columns (scene.platelight.probe_fast_world) makes a 128x64 probe about 3x faster, but under a
+# small bright sun (the city HDRI) it leaves fireflies on sunlit surfaces and their median 22 %
+# too dark (docs/compositing.md), so the world's own resolution is the default.
 PROBE_WORLD_MAP_RESOLUTION = 256
 
 # Counts Cycles probe renders (tests and benchmarks read it to prove a cache hit renders nothing).
@@ -78,10 +78,13 @@ class ProbeBake:
     (always: restores the scene). ``summary()`` says what was baked, reused and skipped."""
 
     def __init__(self, context, objects, frames, *, static=True, use_cache=True,
-                 reuse_world=True, cull=True, world_map_resolution=PROBE_WORLD_MAP_RESOLUTION,
+                 reuse_world=True, cull=True, world_map_resolution="scene",
                  check_only=False):
         self.context = context
         self.check_only = check_only          # compare hashes, render nothing, mark "stale"
+        if world_map_resolution == "scene":
+            world_map_resolution = (PROBE_WORLD_MAP_RESOLUTION if context.scene.platelight.probe_fast_world
+                                    else None)
         self.world_map_resolution = world_map_resolution      # None: leave the world's setting
         self.scene = context.scene
         self.view_layer = context.view_layer
@@ -335,6 +338,7 @@ class ProbeBake:
         return content_hash({
             "origin": np.asarray(origin), "maps": list(maps), "world": self._world_digest,
             "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
+                         settings.probe_fast_world,
                          settings.probe_distance],
             "render": [self.scene.cycles.max_bounces, self.scene.cycles.diffuse_bounces,
                        self.scene.cycles.glossy_bounces, self.scene.cycles.transmission_bounces],

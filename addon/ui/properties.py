@@ -79,6 +79,13 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         "in a probe nor make it stale when they move",
         default=1000.0, min=0.01, soft_max=10000.0, unit="LENGTH",
     )
+    probe_fast_world: BoolProperty(
+        name="Fast World Sampling",
+        description="Cap the world's light-importance map at 256 columns for probe renders: "
+        "about 3x faster probes, but a small bright sun is then sampled poorly (fireflies, "
+        "darker sunlit surfaces in the probe)",
+        default=False,
+    )
     pack_maps: BoolProperty(
         name="Pack Maps",
         description="Also pack the baked maps into the .blend (one image per map file, updated in "

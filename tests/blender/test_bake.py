@@ -427,3 +427,27 @@ def test_shape_key_modifier_and_text_changes_make_probes_stale(bpy_clean, tmp_pa
     bake(bpy, all_objects=True, cull=False)
     assert module.render_count == before + 5
     assert a.platelight.probe_status == "baked"
+
+
+def test_fast_world_sampling_is_a_setting_that_makes_probes_stale(bpy_clean, tmp_path):
+    """The world's own importance map is the default (a small sun needs it); the 256-column cap
+    is opt-in, and switching it re-renders the probes it affects."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.4, 0.4, 0.4))
+    a = add_sphere(bpy, "A", (0, 0, 0))
+    add_sphere(bpy, "B", (2, 0, 0), enabled=False)
+    module = bake_module()
+    scene = bpy.context.scene
+    assert module.ProbeBake(bpy.context, [a], [1]).world_map_resolution is None
+    scene.platelight.probe_fast_world = True
+    assert module.ProbeBake(bpy.context, [a], [1]).world_map_resolution == module.PROBE_WORLD_MAP_RESOLUTION
+    scene.platelight.probe_fast_world = False
+    sampling = (scene.world.cycles.sampling_method, scene.world.cycles.sample_map_resolution)
+    bake(bpy, all_objects=True, cull=False)
+    before = module.render_count
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before              # unchanged: cache hit
+    scene.platelight.probe_fast_world = True
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1
+    assert (scene.world.cycles.sampling_method, scene.world.cycles.sample_map_resolution) == sampling
