@@ -1,4 +1,5 @@
-"""Scene properties > PlateLight Compositing: the plate, lights from the probe, the composite."""
+"""Scene properties > PlateLight Compositing: the plate and its camera track, the light probe,
+lights from the probe, the composite; and the same tracking in the Movie Clip editor's sidebar."""
 import bpy
 
 from .registration import register_classes, unregister_classes
@@ -18,6 +19,12 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text=f"Plate: {plate.filepath if plate else 'none'}", icon="IMAGE_DATA")
         col.operator("platelight.setup_plate", icon="FILE_MOVIE")
+        col.operator("platelight.track_markers", text="Track Markers (ArUco / ChArUco)", icon="TRACKER")
+        col = layout.column(align=True)
+        probe = scene.platelight.world_probe
+        col.label(text=f"Light probe: {bpy.path.basename(probe) if probe else 'world texture'}",
+                  icon="WORLD")
+        col.operator("platelight.capture_probe", text="Probe from Chrome-Ball Brackets", icon="SHADING_RENDERED")
         col = layout.column(align=True)
         col.label(text="Shadows from the probe", icon="LIGHT_SUN")
         row = col.row(align=True)
@@ -31,7 +38,19 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         row.operator("platelight.setup_composite", text="Differential").method = "DIFFERENTIAL"
 
 
-classes = (PLATELIGHT_PT_compositing,)
+class PLATELIGHT_PT_clip_tracking(bpy.types.Panel):
+    bl_label = "PlateLight"
+    bl_space_type = "CLIP_EDITOR"
+    bl_region_type = "UI"
+    bl_category = "Track"
+
+    def draw(self, context):
+        col = self.layout.column(align=True)
+        col.operator("platelight.track_markers", text="Track Markers (ArUco / ChArUco)", icon="TRACKER")
+        col.operator("platelight.setup_plate", text="Use as Plate", icon="FILE_MOVIE")
+
+
+classes = (PLATELIGHT_PT_compositing, PLATELIGHT_PT_clip_tracking)
 
 
 def register():
