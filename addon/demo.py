@@ -1,8 +1,9 @@
 """`python -m platelight demo --out DIR`: the embedded end-to-end example, no arguments needed.
 
 Stage 1 (engine): the four maps of a CC0 HDRI that ships inside the bpy wheel, with a contact
-sheet PNG (probe | diffuse | glossy1 | glossy2 | specular). Stage 2 (Blender): the AR composite
-of addon/demo_ar.py, when available."""
+sheet PNG (probe | diffuse | glossy1 | glossy2 | specular). Stage 2 (headless Blender): the AR
+composite of addon/demo_ar.py (plate, per-object probes, SBRDF materials, shadows, differential
+composite) and a row of spheres with the SBRDF material presets."""
 from __future__ import annotations
 
 import glob
@@ -62,10 +63,18 @@ def run(args) -> int:
     timings = {"maps": run_maps_stage(out, args.hdri)}
     print(f"maps of '{args.hdri}' in {timings['maps']['maps_s'] * 1e3:.1f} ms -> {out}/maps, "
           f"{out}/maps_contact_sheet.png")
-    if not args.maps_only and importlib.util.find_spec(f"{__package__}.demo_ar") is not None:
-        from .demo_ar import run_ar_demo
+    if not args.maps_only:
+        from .demo_ar import EXT_MODULE, blender_with_extension, run_ar_demo
 
         timings["ar"] = run_ar_demo(os.path.join(out, "ar"))
+        print(f"AR composite: {out}/ar/contact_sheet.png, composites in {out}/ar/composite/")
+        # The material presets, one sphere each (the paper's materials, Figure 15).
+        blender_with_extension()
+        preview = importlib.import_module(f"{EXT_MODULE}.node_groups.sbrdf_preview")
+        t0 = time.perf_counter()
+        preview.render_preset_row(os.path.join(out, "sbrdf_presets.png"))
+        timings["sbrdf_presets_s"] = time.perf_counter() - t0
+        print(f"material presets: {out}/sbrdf_presets.png")
     write_json_atomic(os.path.join(out, "timings.json"), timings)
     print(f"timings: {out}/timings.json")
     return 0

@@ -38,7 +38,7 @@ PROBE_SAMPLES = 64   # the bake's default 16 leaves sun fireflies on the floor i
 SBRDF_PRESETS = {"CG Plaster Sphere": "marble", "CG Chrome Sphere": "chrome"}
 
 
-def _blender():
+def blender_with_extension():
     """bpy with this package enabled as the extension bl_ext.dev.platelight."""
     if "bpy" not in sys.modules:
         os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp(prefix="platelight-demo-profile-")
@@ -241,7 +241,7 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
     timings = {}
     t_all = time.perf_counter()
     t0 = time.perf_counter()
-    bpy = _blender()
+    bpy = blender_with_extension()
     timings["start_blender_s"] = time.perf_counter() - t0
 
     # 1. the footage: the real place, filmed (path-traced) along the camera move
