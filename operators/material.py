@@ -39,6 +39,18 @@ def _active_sbrdf_material(context):
     return material if sm.sbrdf_node(material) is not None else None
 
 
+
+class _OnActiveSBRDFMaterial:
+    """Mixin: the operator needs the active material to be a PlateLight SBRDF material."""
+
+    @classmethod
+    def poll(cls, context):
+        if _active_sbrdf_material(context) is None:
+            cls.poll_message_set("The active material is not a PlateLight SBRDF material")
+            return False
+        return True
+
+
 class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
     """Give the active object a PlateLight SBRDF material bound to its probe maps"""
     bl_idname = "platelight.apply_sbrdf"
@@ -73,20 +85,13 @@ class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class PLATELIGHT_OT_sbrdf_preset(bpy.types.Operator):
+class PLATELIGHT_OT_sbrdf_preset(_OnActiveSBRDFMaterial, bpy.types.Operator):
     """Set the active PlateLight SBRDF material to a built-in preset"""
     bl_idname = "platelight.sbrdf_preset"
     bl_label = "Apply SBRDF Preset"
     bl_options = {"REGISTER", "UNDO"}
 
     preset: EnumProperty(name="Preset", items=_PRESET_ITEMS[1:])
-
-    @classmethod
-    def poll(cls, context):
-        if _active_sbrdf_material(context) is None:
-            cls.poll_message_set("The active material is not a PlateLight SBRDF material")
-            return False
-        return True
 
     def execute(self, context):
         material = _active_sbrdf_material(context)
@@ -107,7 +112,7 @@ class PLATELIGHT_MT_sbrdf_presets(bpy.types.Menu):
                        filter_ext=lambda ext: ext.lower() == ".py")
 
 
-class PLATELIGHT_OT_sbrdf_preset_add(AddPresetBase, bpy.types.Operator):
+class PLATELIGHT_OT_sbrdf_preset_add(_OnActiveSBRDFMaterial, AddPresetBase, bpy.types.Operator):
     """Save the active SBRDF material's parameters as a preset (or remove one)"""
     bl_idname = "platelight.sbrdf_preset_add"
     bl_label = "Add SBRDF Preset"
@@ -115,13 +120,6 @@ class PLATELIGHT_OT_sbrdf_preset_add(AddPresetBase, bpy.types.Operator):
     preset_subdir = PRESET_SUBDIR
     preset_defines = ["node = bpy.context.material.node_tree.nodes['PlateLight SBRDF']"]
     preset_values = [f"node.inputs[{spec.label!r}].default_value" for spec in PARAMETERS]
-
-    @classmethod
-    def poll(cls, context):
-        if _active_sbrdf_material(context) is None:
-            cls.poll_message_set("The active material is not a PlateLight SBRDF material")
-            return False
-        return True
 
 
 class PLATELIGHT_OT_sbrdf_to_principled(bpy.types.Operator):
@@ -152,19 +150,12 @@ class PLATELIGHT_OT_sbrdf_to_principled(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class PLATELIGHT_OT_sbrdf_export(bpy.types.Operator, ExportHelper):
+class PLATELIGHT_OT_sbrdf_export(_OnActiveSBRDFMaterial, bpy.types.Operator, ExportHelper):
     """Write the active SBRDF material's parameters to a JSON file"""
     bl_idname = "platelight.sbrdf_export"
     bl_label = "Export SBRDF Material"
     filename_ext = ".json"
     filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
-
-    @classmethod
-    def poll(cls, context):
-        if _active_sbrdf_material(context) is None:
-            cls.poll_message_set("The active material is not a PlateLight SBRDF material")
-            return False
-        return True
 
     def execute(self, context):
         from ..addon.material.json_io import save_params
@@ -179,20 +170,13 @@ class PLATELIGHT_OT_sbrdf_export(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-class PLATELIGHT_OT_sbrdf_import(bpy.types.Operator, ImportHelper):
+class PLATELIGHT_OT_sbrdf_import(_OnActiveSBRDFMaterial, bpy.types.Operator, ImportHelper):
     """Read SBRDF parameters from a JSON file into the active SBRDF material"""
     bl_idname = "platelight.sbrdf_import"
     bl_label = "Import SBRDF Material"
     bl_options = {"REGISTER", "UNDO"}
     filename_ext = ".json"
     filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
-
-    @classmethod
-    def poll(cls, context):
-        if _active_sbrdf_material(context) is None:
-            cls.poll_message_set("The active material is not a PlateLight SBRDF material")
-            return False
-        return True
 
     def execute(self, context):
         from ..addon.material.json_io import load_params
