@@ -186,9 +186,10 @@ def compute_maps(env: np.ndarray, settings: MapSettings | None = None,
         parts = [f"{k[:-16]}: {v}" for k, v in stats.items() if k.endswith("_negative_texels")]
         warnings.append("SH ringing made some texels negative; they were clamped to 0 ("
                         + ", ".join(parts) + ").")
-    n_sh = num = (SH_JSON_LMAX + 1) ** 2
-    sh_out = np.zeros((num, 3))
-    sh_out[: min(n_sh, coeffs.shape[0])] = coeffs[:n_sh]
+    # sh.json always holds degree 15; a tiny probe (lmax < 15) leaves the rest zero.
+    sh_out = np.zeros(((SH_JSON_LMAX + 1) ** 2, 3))
+    kept = min(sh_out.shape[0], coeffs.shape[0])
+    sh_out[:kept] = coeffs[:kept]
     return MapsResult(maps=maps, sh=sh_out, warnings=warnings, timings=timings, stats=stats)
 
 
