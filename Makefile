@@ -4,7 +4,6 @@ SHELL := /bin/bash
 PY_SYS ?= $(shell command -v python3.11 || echo python3)
 VENV := .venv
 PY := $(VENV)/bin/python
-SITE = $(shell $(PY) -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
 STAMP := $(VENV)/.platelight-stamp
 OUT ?= out/demo
 PYTEST_ARGS ?=
@@ -18,8 +17,10 @@ $(STAMP): requirements.txt
 	test -x $(PY) || $(PY_SYS) -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -r requirements.txt
 	bash tools/ensure-system-deps.sh $(VENV)
-	# `python -m platelight` from any folder: the checkout itself is the package.
-	ln -sfn "$(CURDIR)" "$(SITE)/platelight"
+	# `python -m platelight` from any folder: the checkout itself is the package. The site folder
+	# is asked for in the shell: make expands a recipe before running its first line (no venv yet).
+	site=$$($(PY) -c "import sysconfig; print(sysconfig.get_paths()['purelib'])") && \
+	  test -n "$$site" && ln -sfn "$(CURDIR)" "$$site/platelight"
 	touch $(STAMP)
 
 test: venv

@@ -25,3 +25,20 @@ def test_cli_help_lists_subcommands():
     assert proc.returncode == 0
     for name in ("maps", "demo"):
         assert name in proc.stdout
+
+
+def test_venv_runs_platelight_from_any_folder(tmp_path):
+    """`make` links the checkout into the project's .venv: `python -m platelight` works from any
+    folder without PYTHONPATH (the README's promise)."""
+    import os
+    import pathlib
+
+    import pytest
+
+    if pathlib.Path(sys.prefix).resolve() != (support.REPO / ".venv").resolve():
+        pytest.skip("not running inside this checkout's .venv (made by `make test`)")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    proc = subprocess.run([sys.executable, "-m", "platelight", "--help"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert "maps" in proc.stdout
