@@ -42,12 +42,9 @@ def write_maps(folder: pathlib.Path, maps: dict, frame: int | None = None) -> No
         write_exr(folder / fname, img)
 
 
-def setup_scene(bpy, count: int, size: int = 48):
-    """``count`` unit spheres in a row-major grid, an orthographic camera along +Y; returns the
-    sphere objects and the (columns, rows) of the grid."""
-    cols = min(count, 4)
-    rows = math.ceil(count / cols)
-    scene = bpy.context.scene
+def noise_free_emission_render(scene):
+    """Cycles settings under which an emission-only material renders its exact value: one
+    sample, a box filter narrower than a pixel (no neighbour blur), no bounces, no denoiser."""
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = 1
@@ -56,6 +53,15 @@ def setup_scene(bpy, count: int, size: int = 48):
     scene.cycles.filter_width = 0.01
     scene.cycles.max_bounces = 0
     scene.render.film_transparent = True
+
+
+def setup_scene(bpy, count: int, size: int = 48):
+    """``count`` unit spheres in a row-major grid, an orthographic camera along +Y; returns the
+    sphere objects and the (columns, rows) of the grid."""
+    cols = min(count, 4)
+    rows = math.ceil(count / cols)
+    scene = bpy.context.scene
+    noise_free_emission_render(scene)
     scene.render.resolution_x = cols * size
     scene.render.resolution_y = rows * size
     scene.render.resolution_percentage = 100

@@ -29,6 +29,8 @@ import numpy as np
 import pytest
 
 import support
+from bake_scenes import material
+from sbrdf_scene import noise_free_emission_render
 from support import EXT_MODULE
 
 RES_X, RES_Y = 96, 64
@@ -152,17 +154,6 @@ def read_maps(bpy, ob, frame=None):
 
 # --------------------------------------------------------------------------- scene
 
-def _principled(bpy, name, color, emission=None):
-    mat = bpy.data.materials.new(name)
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    if emission is not None:
-        bsdf.inputs["Emission Color"].default_value = (*emission, 1.0)
-        bsdf.inputs["Emission Strength"].default_value = 1.0
-    return mat
-
-
 def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     """Orthographic camera along +Y, world = a bundled HDRI shrunk to 32 x 64, a smooth unit CG
     sphere at the origin, a green CG cube beside it, a red phantom plane under both; saved to
@@ -199,24 +190,17 @@ def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     bpy.ops.mesh.primitive_cube_add(size=0.6, location=(1.4, -0.6, 0.5))
     cube = bpy.context.object
     cube.name = "Cube"
-    cube.data.materials.append(_principled(bpy, "Green", (0.1, 0.8, 0.1), emission=(0.2, 3.0, 0.2)))
+    cube.data.materials.append(material(bpy, "Green", (0.1, 0.8, 0.1), emission=(0.2, 3.0, 0.2)))
     cube.platelight.enabled = cube_enabled
 
     bpy.ops.mesh.primitive_plane_add(size=6.0, location=(0, 0, -1.2))
     plane = bpy.context.object
     plane.name = "Floor"
-    plane.data.materials.append(_principled(bpy, "Red", (0.8, 0.05, 0.05)))
+    plane.data.materials.append(material(bpy, "Red", (0.8, 0.05, 0.05)))
     plane.platelight.phantom = True
 
     render = scene.render
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = 1
-    scene.cycles.use_denoising = False
-    scene.cycles.pixel_filter_type = "BOX"
-    scene.cycles.filter_width = 0.01
-    scene.cycles.max_bounces = 0
-    render.film_transparent = True
+    noise_free_emission_render(scene)
     render.resolution_x, render.resolution_y, render.resolution_percentage = RES_X, RES_Y, 100
     scene.view_settings.view_transform = "Standard"
     scene.view_settings.look = "None"
