@@ -5,6 +5,8 @@ import os
 import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProperty
 
+from .common import NeedsScene
+
 ENV_NODE_NAME = "PlateLight Probe"
 WORLD_NAME = "PlateLight World"
 
@@ -22,7 +24,7 @@ def _numbers(text: str, what: str, count=None):
     return values
 
 
-class PLATELIGHT_OT_capture_probe(bpy.types.Operator):
+class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
     """Merge exposure brackets of a chrome ball into an HDR lat-long probe and light the world with it"""
     bl_idname = "platelight.capture_probe"
     bl_label = "Capture Probe"
@@ -52,13 +54,6 @@ class PLATELIGHT_OT_capture_probe(bpy.types.Operator):
                                    default=36.0, min=1.0)
     output: StringProperty(name="Probe File", description="Where the EXR goes (empty: probe.exr beside the brackets)",
                            default="", subtype="FILE_PATH")
-
-    @classmethod
-    def poll(cls, context):
-        if context.scene is None:
-            cls.poll_message_set("Needs a scene.")
-            return False
-        return True
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)

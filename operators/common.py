@@ -15,3 +15,14 @@ def find_plate_image(scene):
             if background.source == "IMAGE" and background.image is not None:
                 return background.image
     return None
+
+
+class NeedsScene:
+    """Operator mixin: available whenever there is a scene (says so when there is none)."""
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None:
+            cls.poll_message_set("Needs a scene.")
+            return False
+        return True

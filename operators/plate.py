@@ -11,7 +11,7 @@ import re
 import bpy
 from bpy.props import BoolProperty, FloatProperty, StringProperty
 
-from .common import PLATE_IMAGE_NAME
+from .common import PLATE_IMAGE_NAME, NeedsScene
 from .composite import set_plate_colour_management
 
 MOVIE_EXTENSIONS = {".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".ogv"}
@@ -45,7 +45,7 @@ def _camera_is_animated(camera):
     return bool((data and data.action) or camera.constraints or camera.parent)
 
 
-class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
+class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
     """Load a movie clip or an image sequence as the plate and match the scene to it"""
 
     bl_idname = "platelight.setup_plate"
@@ -62,13 +62,6 @@ class PLATELIGHT_OT_setup_plate(bpy.types.Operator):
     )
     fps: FloatProperty(name="Frame Rate", description="Frame rate of an image sequence (0: keep the "
                        "scene's)", default=0.0, min=0.0, max=1000.0)
-
-    @classmethod
-    def poll(cls, context):
-        if context.scene is None:
-            cls.poll_message_set("Needs a scene")
-            return False
-        return True
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)

@@ -6,6 +6,8 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from mathutils import Matrix
 
+from .common import NeedsScene
+
 PLANE_NAME = "PlateLight Marker Plane"
 CAMERA_NAME = "PlateLight Camera"
 
@@ -37,7 +39,7 @@ def _clear_transform_keys(obj):
         bag.fcurves.remove(fc)
 
 
-class PLATELIGHT_OT_track_markers(bpy.types.Operator):
+class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
     """Track a printed ArUco marker or ChArUco board in the plate: key the scene camera and add a phantom plane on the marker"""
     bl_idname = "platelight.track_markers"
     bl_label = "Track Markers"
@@ -65,13 +67,6 @@ class PLATELIGHT_OT_track_markers(bpy.types.Operator):
                        default="interpolate")
     smooth: FloatProperty(name="Smoothing", description="Gaussian smoothing of the path, sigma in frames",
                           default=0.0, min=0.0, soft_max=10.0)
-
-    @classmethod
-    def poll(cls, context):
-        if context.scene is None:
-            cls.poll_message_set("Needs a scene.")
-            return False
-        return True
 
     def execute(self, context):
         from ..addon.capture.tracking import CharucoTarget, MarkerTarget, load_calibration, track
