@@ -10,7 +10,9 @@ maps and outputs the shader. The material wires the two together (operators/mate
     g   = max(0, N.p)                                     (clamped: a peak below the surface gets no light)
     f   = (1 - clamp(R.N, 0, 1))^(1/phi - 1)              (phi clamped to >= 1e-4: finite at phi -> 0)
     rho_s' = rho_s + (1 - rho_s) f,  n' = n + (1 - n) f,  g' = g + (1 - g) f
-    Lr  = alpha rho_d D(N) + rho_s' g' S(p/|p|, n') + (1 - alpha) rho_d (1 - rho_s') T(t, n') + E
+    w   = lerp(1, g', P),  rho_d' = lerp(rho_d (1 - rho_s'), rho_d, P)      P = Paper Falloff
+          (0, the default: no cosine, layered energy as Principled; 1: the paper's Eq 1, 7)
+    Lr  = alpha rho_d' D(N) + rho_s' w S(p/|p|, n') + (1 - alpha) rho_d (1 - rho_s') T(t, n') + E
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 
 GROUP_NAME = "PlateLight SBRDF"
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
-VERSION = 1
+VERSION = 2  # 2: Paper Falloff input (existing instances upgraded with 1 = their old look)
 PHI_MIN = 1.0e-4
 
 # The lookup outputs, consumed by name by every "PlateLight Probe" group.
@@ -73,11 +75,24 @@ def ensure_sbrdf_group():
         tree = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
     elif tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2:
         return tree
+    old_version = tree.get(VERSION_KEY) if len(tree.nodes) > 2 else None
     sync_interface(tree, _interface())
+    if old_version == 1:
+        _keep_paper_falloff(tree)
     tree.nodes.clear()
     _build(tree)
     tree[VERSION_KEY] = VERSION
     return tree
+
+
+def _keep_paper_falloff(tree):
+    """Materials made before the Paper Falloff input rendered with the paper's g': keep their look."""
+    for material in bpy.data.materials:
+        if material.node_tree is None:
+            continue
+        for node in material.node_tree.nodes:
+            if getattr(node, "node_tree", None) == tree and "Paper Falloff" in node.inputs:
+                node.inputs["Paper Falloff"].default_value = 1.0
 
 
 def _build(tree):
@@ -121,10 +136,18 @@ def _build(tree):
     gloss = g.math("ADD", inp["Glossiness"],
                    g.math("MULTIPLY", g.math("SUBTRACT", 1.0, inp["Glossiness"]), fresnel))
     falloff_f = g.math("ADD", falloff, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, falloff), fresnel))
+    # The maps already hold the lobe's integral, so the paper's cosine g' darkens every rim (a
+    # mirror sphere measured 19 dB against path tracing); the default leaves it out (docs/decisions.md).
+    falloff_f = g.math("MULTIPLY_ADD", inp["Paper Falloff"], g.math("SUBTRACT", falloff_f, 1.0), 1.0)
 
     # Weights of the terms.
     alpha = inp["Alpha"]
-    diffuse_w = g.mix("RGBA", alpha, (0.0, 0.0, 0.0, 1.0), inp["Diffuse Albedo"])
+    # Energy: by default light reflected by the specular layer no longer reaches the diffuse one
+    # (rho_d (1 - rho_s'), as Blender's Principled BSDF layers them); the paper adds both in full.
+    layered = g.color_op("MULTIPLY", inp["Diffuse Albedo"],
+                         g.color_op("SUBTRACT", (1.0, 1.0, 1.0, 1.0), spec_albedo))
+    diffuse_albedo = g.mix("RGBA", inp["Paper Falloff"], layered, inp["Diffuse Albedo"])
+    diffuse_w = g.mix("RGBA", alpha, (0.0, 0.0, 0.0, 1.0), diffuse_albedo)
     specular_w = g.vmath("SCALE", spec_albedo, scale=falloff_f)   # g' may exceed 1 when Cz > 1
     one_minus_spec = g.color_op("SUBTRACT", (1.0, 1.0, 1.0, 1.0), spec_albedo)
     refr_w = g.mix("RGBA", g.math("SUBTRACT", 1.0, alpha), (0.0, 0.0, 0.0, 1.0),

@@ -43,6 +43,11 @@ PROBE_WORLD_MAP_RESOLUTION = 256
 
 # Counts Cycles probe renders (tests and benchmarks read it to prove a cache hit renders nothing).
 render_count = 0
+# An owner baked with its shadows (scene.platelight.probe_owner_shadows) is invisible to these
+# rays only: the probe looks through it, but the floor under it lies in its shadow, as seen from
+# its surface (the paper hides the owner, so a probe shows a sunlit floor under a ball on it).
+SHADOW_ONLY_HIDDEN_RAYS = ("visible_camera", "visible_diffuse", "visible_glossy",
+                           "visible_transmission", "visible_volume_scatter")
 
 
 # --------------------------------------------------------------------------- scene state
@@ -297,9 +302,11 @@ class ProbeBake:
                 if ob.is_holdout:
                     state.set(ob, "is_holdout", False)
 
-    def render_probe(self, origin, hidden=()):
-        """Render the panorama seen from ``origin`` (world space) with ``hidden`` objects hidden;
-        returns float32 (H, 2H, 3), first row the top (the Environment Texture's layout)."""
+    def render_probe(self, origin, hidden=(), shadow_only=()):
+        """Render the panorama seen from ``origin`` (world space) with ``hidden`` objects hidden
+        and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
+        shades the floor under itself); returns float32 (H, 2H, 3), first row the top (the
+        Environment Texture's layout)."""
         global render_count
         if self._camera is None:            # set up on the first render: cache hits never need it
             self.begin()
@@ -308,8 +315,13 @@ class ProbeBake:
         try:
             for ob in hidden:
                 if not ob.hide_render:
+                    restore.append((ob, "hide_render", False))
                     ob.hide_render = True
-                    restore.append(ob)
+            for ob in shadow_only:
+                for flag in SHADOW_ONLY_HIDDEN_RAYS:
+                    if getattr(ob, flag):
+                        restore.append((ob, flag, True))
+                        setattr(ob, flag, False)
             try:
                 bpy.ops.render.render(write_still=True)
             except RuntimeError as exc:
@@ -318,8 +330,8 @@ class ProbeBake:
                                       f"{reason}") from None
             render_count += 1
         finally:
-            for ob in restore:
-                ob.hide_render = False
+            for ob, flag, value in restore:
+                setattr(ob, flag, value)
         return read_exr(self.scene.render.filepath, "RGB")
 
     def map_settings(self):
@@ -338,7 +350,7 @@ class ProbeBake:
         return content_hash({
             "origin": np.asarray(origin), "maps": list(maps), "world": self._world_digest,
             "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
-                         settings.probe_fast_world,
+                         settings.probe_fast_world, settings.probe_owner_shadows,
                          settings.probe_distance],
             "render": [self.scene.cycles.max_bounces, self.scene.cycles.diffuse_bounces,
                        self.scene.cycles.glossy_bounces, self.scene.cycles.transmission_bounces],
@@ -384,7 +396,10 @@ class ProbeBake:
             ob.platelight.probe_status = "stale"
             return
         else:
-            env = self.render_probe(origin, hidden=[ob])
+            if self.scene.platelight.probe_owner_shadows:
+                env = self.render_probe(origin, shadow_only=[ob])
+            else:                                       # the paper: the owner is simply hidden
+                env = self.render_probe(origin, hidden=[ob])
             result = compute_maps(env, self.map_settings(), which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)

@@ -85,9 +85,12 @@ def sbrdf(P, view, maps, p):
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
     n2 = p["glossiness"] + (1 - p["glossiness"]) * f
     g2 = g + (1 - g) * f
+    g2 = 1.0 + p.get("paper_falloff", 0.0) * (g2 - 1.0)   # 0: no cosine; 1: the paper's g'
     rho_d = np.asarray(p["diffuse_albedo"])
     a = p["alpha"]
-    lr = a * rho_d * bilinear(maps["diffuse"], N)
+    paper = p.get("paper_falloff", 0.0)       # 0: the diffuse layer gets what the specular leaves
+    rho_d_layered = paper * rho_d + (1 - paper) * rho_d * (1 - rho_s)
+    lr = a * rho_d_layered * bilinear(maps["diffuse"], N)
     spec_dir = _norm(peak)
     lr = lr + rho_s * g2 * blend(maps, spec_dir, n2)
     refr = np.zeros_like(lr)

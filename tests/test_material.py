@@ -43,7 +43,7 @@ def _doc(**overrides):
     ("{oops", "not valid JSON"),
     ("[1, 2]", "not a PlateLight SBRDF material"),
     (json.dumps({"format": "something-else", "version": 1}), "not a PlateLight SBRDF material"),
-    (_doc(version=2), "version 2"),
+    (_doc(version=3), "version 3"),
     (_doc(version="1"), "no valid \"version\""),
     (_doc(parameters=[1]), "no \"parameters\""),
     (_doc(parameters={"shininess": 3}), "Unknown SBRDF parameter 'shininess'"),
@@ -63,6 +63,11 @@ def test_json_missing_file_and_partial_parameters(tmp_path):
         {"format": "platelight-sbrdf", "version": 1, "parameters": {"glossiness": 7}}))
     p, _ = json_io.load_params(tmp_path / "p.json")
     assert p.glossiness == 1.0 and p.cx == SBRDFParams().cx      # clamped, defaults kept
+    # A version-1 file was made with the paper's cosine falloff: it keeps that look.
+    assert p.paper_falloff == 1.0
+    (tmp_path / "p2.json").write_text(json.dumps(
+        {"format": "platelight-sbrdf", "version": 2, "parameters": {"glossiness": 0.5}}))
+    assert json_io.load_params(tmp_path / "p2.json")[0].paper_falloff == 0.0
 
 
 def test_roughness_glossiness_knots():

@@ -1,11 +1,13 @@
 """SBRDF material files (JSON): the paper's "material editor that exports its configuration".
 
-    {"format": "platelight-sbrdf", "version": 1, "name": "Chrome",
+    {"format": "platelight-sbrdf", "version": 2, "name": "Chrome",
      "parameters": {"diffuse_albedo": [0, 0, 0], "glossiness": 1.0, ...}}
 
 Reading validates everything before anything is applied: a malformed file, another format, a
 newer version, an unknown or mistyped parameter raises PlateLightError (one sentence). Missing
-parameters take their defaults; values out of range are clamped (as the node sockets do)."""
+parameters take their defaults; values out of range are clamped (as the node sockets do).
+Version 1 predates ``paper_falloff``: those materials were made with the paper's g', so a version-1
+file without it reads as paper_falloff = 1 (the look it was saved with)."""
 from __future__ import annotations
 
 import dataclasses
@@ -16,7 +18,7 @@ from ..errors import PlateLightError
 from .params import SBRDFParams, validate_value
 
 FORMAT = "platelight-sbrdf"
-VERSION = 1
+VERSION = 2
 
 
 def params_to_json(params: SBRDFParams, name: str = "") -> str:
@@ -46,6 +48,8 @@ def params_from_json(text: str, source: str = "the file") -> tuple[SBRDFParams, 
     if not isinstance(values, dict):
         raise PlateLightError(f"{source} has no \"parameters\" object.")
     checked = {key: validate_value(key, value) for key, value in values.items()}
+    if version == 1:
+        checked.setdefault("paper_falloff", 1.0)
     name = data.get("name", "")
     return dataclasses.replace(SBRDFParams(), **checked).clamped(), str(name)
 

@@ -50,6 +50,11 @@ PARAMETERS = (
               "Per-channel IOR spread: red uses IOR - d, green IOR, blue IOR + d"),
     ParamSpec("retro_reflection", "Retro-Reflection", "float", 0.0, 0.0, 1.0,
               "Blends the Lafortune peak towards the viewer (C = (1, 1, 1)): the paper's retro-reflector"),
+    ParamSpec("paper_falloff", "Paper Falloff", "float", 0.0, 0.0, 1.0,
+              "1: the paper's Eq 1 and 7 as written: the cosine falloff g' = g + (1 - g) f darkens "
+              "the specular term towards the rim, and the diffuse term ignores the specular one; "
+              "0: no cosine (the maps already integrate the lobe) and the diffuse term gets "
+              "rho_d (1 - rho_s'), which matches a path-traced Principled BSDF; blends in between"),
 )
 SPEC = {p.name: p for p in PARAMETERS}
 
@@ -70,6 +75,7 @@ class SBRDFParams:
     ior: float = SPEC["ior"].default
     dispersion: float = SPEC["dispersion"].default
     retro_reflection: float = SPEC["retro_reflection"].default
+    paper_falloff: float = SPEC["paper_falloff"].default
 
     def clamped(self) -> "SBRDFParams":
         """A copy with every value inside its range (what the node sockets would do)."""

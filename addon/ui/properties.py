@@ -86,6 +86,13 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         "darker sunlit surfaces in the probe)",
         default=False,
     )
+    probe_owner_shadows: BoolProperty(
+        name="Owner Shadows",
+        description="The object still casts its shadows in its own probe (it is invisible to the "
+        "probe's rays, not removed): the floor under a ball is seen shadowed from the ball, as it "
+        "is. Off: the paper's probe, with the owner simply hidden",
+        default=True,
+    )
     pack_maps: BoolProperty(
         name="Pack Maps",
         description="Also pack the baked maps into the .blend (one image per map file, updated in "

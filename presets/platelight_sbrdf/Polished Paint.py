@@ -14,3 +14,4 @@ node.inputs['Alpha'].default_value = 1.0
 node.inputs['IOR'].default_value = 1.5
 node.inputs['Dispersion'].default_value = 0.0
 node.inputs['Retro-Reflection'].default_value = 0.0
+node.inputs['Paper Falloff'].default_value = 0.0

@@ -451,3 +451,38 @@ def test_fast_world_sampling_is_a_setting_that_makes_probes_stale(bpy_clean, tmp
     bake(bpy, all_objects=True, cull=False)
     assert module.render_count == before + 1
     assert (scene.world.cycles.sampling_method, scene.world.cycles.sample_map_resolution) == sampling
+
+
+def test_owner_shadows_its_floor_in_its_own_probe_unless_the_papers_probe_is_asked(bpy_clean, tmp_path):
+    """A ball resting on a sunlit floor sees the floor under it in its own shadow (default); the
+    paper's probe hides the owner, so the same floor shows sunlit. Either way the owner itself is
+    not in the probe, its ray visibility is restored, and switching the setting re-bakes."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.05, 0.05, 0.05))
+    ball = add_sphere(bpy, "Ball", (0, 0, 0.5), radius=0.5, color=(0, 0, 0), emission=(0, 5, 0))
+    add_plane(bpy, "Floor", (0, 0, 0), size=20, color=(0.8, 0.8, 0.8), phantom=True)
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = 3.0
+    bpy.context.scene.collection.objects.link(sun)           # pointing straight down
+    scene = bpy.context.scene
+    module = bake_module()
+    flags = {f: getattr(ball, f) for f in module.SHADOW_ONLY_HIDDEN_RAYS}
+
+    def below():
+        spec = read_map(tmp_path, "Ball", "specular")
+        green = spec[..., 1] - spec[..., 0]                   # the owner glows green
+        assert green.max() < 0.02, f"the owner (or its glow) is in its probe: {green.max()}"
+        h = spec.shape[0]
+        return float(spec[-max(h // 8, 1):].mean())            # looking down: the floor under it
+
+    assert scene.platelight.probe_owner_shadows
+    bake(bpy, all_objects=True, cull=False)
+    shadowed = below()
+    assert {f: getattr(ball, f) for f in flags} == flags
+    before = module.render_count
+    scene.platelight.probe_owner_shadows = False
+    bake(bpy, all_objects=True, cull=False)
+    assert module.render_count == before + 1                  # the setting is in the hash
+    sunlit = below()
+    # Sunlit floor: 0.8/pi * 3 W/m^2 ~ 0.76 plus sky; in the ball's shadow only the dim sky.
+    assert sunlit > 0.5 and shadowed < 0.25 * sunlit, (shadowed, sunlit)

@@ -94,8 +94,11 @@ def _sbrdf(maps, N, p):
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
     n2 = p["glossiness"] + (1 - p["glossiness"]) * f
     g2 = g + (1 - g) * f
+    g2 = 1.0 + p.get("paper_falloff", 0.0) * (g2 - 1.0)   # 0: no cosine; 1: the paper's g'
     if "diffuse" in maps:
-        lr = np.asarray(p["diffuse_albedo"]) * _lookup(maps["diffuse"], N)
+        paper = p.get("paper_falloff", 0.0)   # 0: the diffuse layer gets what the specular leaves
+        rho_d = np.asarray(p["diffuse_albedo"]) * (paper + (1 - paper) * (1 - rho_s))
+        lr = rho_d * _lookup(maps["diffuse"], N)
     else:                                              # a mirror's bake has no diffuse map
         assert not any(p["diffuse_albedo"]), "the diffuse map is needed but was not baked"
         lr = 0.0

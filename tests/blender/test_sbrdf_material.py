@@ -139,6 +139,25 @@ def test_group_is_idempotent_and_upgrades_in_place(bpy_clean, tmp_path):
     assert sm.probe_node(mat).inputs["Map Glossiness"].is_linked
 
 
+def test_version_1_groups_keep_the_papers_falloff(bpy_clean, tmp_path):
+    """Materials made before the Paper Falloff input rendered with the paper's g': the upgrade
+    keeps that (1) on them, while new materials get the default (0)."""
+    bpy = bpy_clean
+    from bl_ext.dev.platelight.node_groups import sbrdf
+
+    ob = _sphere(bpy)
+    ob.platelight.probe_dir = str(tmp_path)
+    sm = _sm()
+    old = sm.apply_sbrdf_material(ob, preset_name="chrome")
+    group = bpy.data.node_groups[sbrdf.GROUP_NAME]
+    group[sbrdf.VERSION_KEY] = 1
+    group.interface.remove(next(i for i in group.interface.items_tree if i.name == "Paper Falloff"))
+    sbrdf.ensure_sbrdf_group()
+    assert sm.read_params(old).paper_falloff == 1.0
+    new = sm.apply_sbrdf_material(_sphere(bpy), preset_name="chrome")
+    assert new != old and sm.read_params(new).paper_falloff == 0.0
+
+
 def test_socket_limits_match_parameter_ranges(bpy_clean):
     from bl_ext.dev.platelight.node_groups import sbrdf
 
