@@ -17,6 +17,7 @@ SUBCOMMANDS = {
     "track": ".capture.cli_track",
     "probe": ".capture.cli_probe",
     "bake": ".bake.cli_bake",
+    "render": ".cli_render",
 }
 
 

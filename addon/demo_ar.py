@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 
+from .cli_render import temp_path
 from .errors import PlateLightError
 from .exr_io import read_exr
 from .fileio import ensure_writable_folder, write_json_atomic
@@ -127,7 +128,7 @@ def _render_still(bpy, scene, path, file_format="OPEN_EXR"):
     else:
         settings.color_depth = "8"
         settings.color_mode = "RGB"
-    tmp = f"{path}.partial{os.path.splitext(path)[1]}"
+    tmp = temp_path(path)   # hidden (.NAME.partial-PID.EXT): a glob of NAME_*.EXT never sees it
     scene.render.filepath = tmp
     bpy.ops.render.render(write_still=True)
     os.replace(tmp, path)

@@ -40,6 +40,20 @@ def scan_sequence(path):
     return numbers[0], numbers[-1], len(numbers)
 
 
+def frame_rate_pair(fps):
+    """Blender's (fps, fps_base) for a frame rate: integer rates exactly, NTSC rates (23.976,
+    29.97, 59.94: N/1.001) as (N, 1.001) like Blender's own presets, anything else (N, N/fps).
+    Movie containers store rates as float32 (23.97599983), so they are snapped to these."""
+    whole = round(fps)
+    if whole >= 1 and abs(fps - whole) < 1e-3:
+        return whole, 1.0
+    ntsc = round(fps * 1.001)
+    if ntsc >= 1 and abs(fps * 1.001 - ntsc) < 1e-3:
+        return ntsc, 1.001
+    whole = max(1, whole)
+    return whole, whole / fps
+
+
 def _camera_is_animated(camera):
     data = camera.animation_data
     return bool((data and data.action) or camera.constraints or camera.parent)
@@ -108,6 +122,9 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
         fps = clip_fps or self.fps or None
+        fps_pair = frame_rate_pair(fps) if fps else None
+        if fps:
+            fps = fps_pair[0] / fps_pair[1]
         render = scene.render
         scene_fps = render.fps / render.fps_base
         mismatch = []
@@ -135,7 +152,7 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
         render.pixel_aspect_x = render.pixel_aspect_y = 1.0
         scene.frame_start, scene.frame_end = 1, count
         if fps:
-            render.fps, render.fps_base = max(1, round(fps)), max(1, round(fps)) / fps
+            render.fps, render.fps_base = fps_pair
         set_plate_colour_management(scene)
 
         camera = scene.camera
