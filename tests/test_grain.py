@@ -56,6 +56,17 @@ def test_estimate_recovers_signal_dependent_grain():
     assert abs(stats.size - 1.0) < 0.2
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_constant_grain_on_a_small_plate_gets_no_signal_dependence(seed):
+    """A noisy slope would be extrapolated to the CG's level: it must be significant to count."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:108, 0:192]
+    base = (0.3 + 0.3 * x / 192 + 0.1 * y / 108)[..., None] * np.array([1.0, 0.9, 0.8])
+    stats = estimate_grain((base + 0.03 * rng.standard_normal((108, 192, 3))).astype(np.float32))
+    assert np.all(stats.response == 0)
+    np.testing.assert_allclose(stats.sigma, 0.03, rtol=0.10)
+
+
 def test_make_grain_statistics_and_determinism():
     stats = GrainStats.constant((0.01, 0.02, 0.05), size=1.5)
     a = make_grain(stats, 320, 240, frame=3, seed=11)

@@ -22,7 +22,9 @@ Estimator (``estimate_grain``):
    every grain size from the impulse response of (blur by size, then the high-pass): the measured
    ratio MAD(diff)²/MAD(r)² = 2(1 - ρ_residual) gives the size (table inversion), then
    var(grain) = var(r) / kept(size);
-5. per channel, the bins' variances are fitted by weighted least squares to a + b·L with a, b ≥ 0.
+5. per channel, the bins' variances are fitted by weighted least squares to a + b·L with a, b ≥ 0
+   (weights from each bin's sampling error); the slope b is kept only when it is significant
+   (3 sigma), else the grain is taken as the same at every level.
 
 The reference level of each channel is the median flat level; ``sigma`` is the grain's standard
 deviation there and ``response`` the part of its variance that is signal-dependent
@@ -267,10 +269,11 @@ def estimate_grain(plate: np.ndarray) -> GrainStats:
     else:
         size = 0.0
     kept = float(np.interp(size, table.sizes, table.kept))
+    rho_residual = float(np.interp(size, table.sizes, table.rho))
 
     floor, slope, ref = np.zeros(3), np.zeros(3), np.zeros(3)
     for c, (levels, variances, counts) in enumerate(per_channel):
-        floor[c], slope[c] = _fit_variance(np.maximum(levels, 0.0), variances / kept, counts)
+        floor[c], slope[c] = _fit_variance(np.maximum(levels, 0.0), variances / kept, counts, rho_residual)
         ref[c] = max(float(np.median(levels)), 0.0)
     variance = floor + slope * ref
     sigma = np.sqrt(variance)
@@ -281,21 +284,30 @@ def estimate_grain(plate: np.ndarray) -> GrainStats:
                       size=size, correlation=grain_correlation(size), pixels=used)
 
 
-def _fit_variance(levels, variances, weights):
-    """(a, b) ≥ 0 minimising Σ w (a + b·L - v)²."""
-    w = weights / weights.sum()
+def _fit_variance(levels, variances, counts, rho):
+    """(a, b) ≥ 0 of var = a + b·L over the level bins, weighted by each bin's sampling error.
+
+    A MAD variance from n independent Gaussian samples has relative variance ≈ 5.45/n; a
+    residual with lag-1 correlation ρ has fewer independent samples, n·((1-|ρ|)/(1+|ρ|))² (2-D,
+    AR(1)-like). The slope is kept only when it explains the bins better than a constant by
+    χ² > 9 (3 sigma); otherwise noise in a few bins would become a signal dependence that is
+    then extrapolated to the CG's level."""
+    effective = counts * ((1 - abs(rho)) / (1 + abs(rho))) ** 2
+    w = effective / (5.45 * np.maximum(variances, 1e-30) ** 2)
+
+    def chi2(a, b):
+        return float((w * (a + b * levels - variances) ** 2).sum())
+
+    a0 = float((w * variances).sum() / w.sum())
+    best = (a0, 0.0)
     if levels.size >= 2 and np.ptp(levels) > 0:
         design = np.stack([np.ones_like(levels), levels], axis=1) * np.sqrt(w)[:, None]
         a, b = np.linalg.lstsq(design, variances * np.sqrt(w), rcond=None)[0]
-        if a >= 0 and b >= 0:
-            return float(a), float(b)
-        # the constrained optimum lies on a boundary: the better of a = 0 or b = 0
-        b0 = max(float((w * levels * variances).sum() / max((w * levels * levels).sum(), 1e-300)), 0.0)
-        a0 = float((w * variances).sum())
-        err_b = float((w * (b0 * levels - variances) ** 2).sum())
-        err_a = float((w * (a0 - variances) ** 2).sum())
-        return (0.0, b0) if err_b < err_a else (a0, 0.0)
-    return float((w * variances).sum()), 0.0
+        if not (a >= 0 and b >= 0):  # the constrained optimum lies on the boundary a = 0
+            a, b = 0.0, max(float((w * levels * variances).sum() / max((w * levels ** 2).sum(), 1e-300)), 0.0)
+        if chi2(*best) - chi2(a, b) > 9.0:
+            best = (float(a), float(b))
+    return best
 
 
 # ---------------------------------------------------------------- synthesis
@@ -335,3 +347,22 @@ def make_grain(stats: GrainStats, width: int, height: int, frame: int, seed: int
             white = _separable(white, kernel, cv2.BORDER_REFLECT_101)[pad:-pad, pad:-pad]
         out[..., c] = white * np.float32(sigma[c] * scale)
     return out
+
+
+def linear_plate(image: np.ndarray, srgb: bool) -> np.ndarray:
+    """A decoded plate frame as float32 linear RGB: ``image`` in OpenCV's channel order (BGR or
+    BGRA, or grey), 8/16-bit (÷ max) or float; ``srgb`` decodes the sRGB transfer curve (as
+    Blender does for sRGB footage before compositing)."""
+    image = np.asarray(image)
+    if image.ndim == 2:
+        image = image[..., None]
+    if image.ndim != 3 or image.shape[2] not in (1, 3, 4):
+        raise PlateLightError(f"The plate frame is not an image (shape {image.shape}).")
+    rgb = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., 2::-1]
+    if np.issubdtype(rgb.dtype, np.integer):
+        rgb = rgb.astype(np.float32) / np.float32(np.iinfo(image.dtype).max)
+    else:
+        rgb = rgb.astype(np.float32)
+    if srgb:
+        rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((np.maximum(rgb, 0.04045) + 0.055) / 1.055) ** 2.4)
+    return np.ascontiguousarray(rgb, dtype=np.float32)
