@@ -110,7 +110,8 @@ def test_no_grain_and_odd_pixels():
 @pytest.mark.parametrize("plate,message", [
     (np.zeros((8, 64, 3)), "too small"),
     (np.zeros((64, 64)), "RGB image"),
-    (np.full((64, 64, 3), np.nan), "no finite pixels"),
+    (np.full((64, 64, 3), np.nan), "no usable pixels"),
+    (np.random.default_rng(0).uniform(-3e38, 3e38, (64, 64, 3)).astype(np.float32), "no usable pixels"),
     (np.array([["a"] * 3] * 64 * 64).reshape(64, 64, 3), "numbers"),
 ])
 def test_estimate_bad_input(plate, message):

@@ -45,6 +45,7 @@ from ..errors import PlateLightError
 MIN_SIDE = 16                   # smaller plates hold too few pixels for a grain estimate
 MAX_SIDE = 32768                # grain images larger than this are a mistake
 MAX_PIXELS = 8192 * 8192
+MAX_VALUE = 1e30                # larger pixels are treated like Inf (float32 sums would overflow)
 MAX_SIZE = 3.0                  # grain sizes (px) the estimator can tell apart
 LEVEL_BINS = 8
 MIN_BIN_PIXELS = 200
@@ -202,16 +203,19 @@ def _mad2(values):
 
 
 def estimate_grain(plate: np.ndarray) -> GrainStats:
-    """Measure the grain of ``plate`` (float, (H, W, 3+), linear). NaN/Inf pixels and their
-    neighbourhoods are ignored; a plate without grain gives sigma 0. See the module docstring."""
+    """Measure the grain of ``plate`` (float, (H, W, 3+), linear). NaN/Inf pixels (and absurd
+    values above MAX_VALUE) and their neighbourhoods are ignored; a plate without grain gives
+    sigma 0. See the module docstring."""
     import cv2
 
     plate = _check_plate(plate)
-    valid = np.all(np.isfinite(plate), axis=2)
+    with np.errstate(invalid="ignore"):
+        valid = np.all(np.abs(plate) <= MAX_VALUE, axis=2)      # False for NaN and ±Inf too
     if not valid.any():
-        raise PlateLightError("The plate has no finite pixels to measure grain on.")
+        raise PlateLightError(f"The plate has no usable pixels (finite, |value| ≤ {MAX_VALUE:g}) to "
+                              "measure grain on.")
     plate = np.where(valid[..., None], plate, 0.0).astype(np.float32)
-    # a pixel's residual and smoothed level depend on its 7×7 (and blur) neighbourhood
+    # a pixel's residual and smoothed level depend on its smoothing window and blur neighbourhood
     reach = max(SMOOTHER.size // 2, int(math.ceil(3 * MASK_BLUR))) + 1
     valid = cv2.erode(valid.astype(np.uint8), np.ones((2 * reach + 1,) * 2, np.uint8),
                       borderType=cv2.BORDER_CONSTANT, borderValue=1).astype(bool)
