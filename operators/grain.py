@@ -135,9 +135,13 @@ class PLATELIGHT_OT_match_grain(NeedsScene, bpy.types.Operator):
         scene = context.scene
         # --- check and compute everything before changing the scene
         diff = differential_node(scene)
-        if diff is None or "Grain" not in diff.inputs:
+        if diff is None:
             self.report({"ERROR"}, "The scene has no PlateLight composite; run Set Up Composite "
                         "(platelight.setup_composite) first.")
+            return {"CANCELLED"}
+        if "Grain" not in diff.inputs:
+            self.report({"ERROR"}, "The PlateLight composite was made before grain matching; run "
+                        "Set Up Composite (platelight.setup_composite) again first.")
             return {"CANCELLED"}
         plate = find_plate_image(scene)
         if plate is None:
