@@ -2,12 +2,17 @@
 paper section 4), with the CG's lens and tone presets.
 
     CG'      = blur(glare(tone(exposure(CG))))                 (CG only: the plate passes untouched)
+    CG''     = CG' + Grain Amount · α' · Grain · √(1 − r + r · (CG'/α') / Grain Level)
     ratio    = min(With / max(Without, ε), Shadow Clamp)        (ratio form; catcher pass: Without = 1)
     local    = Ratio Form ? Plate · ratio : Plate + With − Without
-    Image    = CG' + (1 − α_CG) · local                         (premultiplied "over")
+    Image    = CG'' + (1 − α_CG) · local                        (premultiplied "over")
 
 Where no CG, shadow or reflection touches a pixel, α = 0 and With = Without, so Image = Plate
-exactly (every step is then a multiplication by 1 or an addition of 0 in float32).
+exactly (every step is then a multiplication by 1 or an addition of 0 in float32; the grain is
+weighted by the CG's alpha α', so it adds exactly 0 there).
+Grain: the plate's grain at its reference level (Grain Level), made by platelight.match_grain
+(addon/compositing/grain.py); r = Grain Response, the signal-dependent part of its variance, so
+the grain's variance follows var(L) = a + b·L at the CG's own level L.
 
 Blender 5.0: compositor groups are node trees of type CompositorNodeTree; Mix and Math are the
 shader-style nodes; node options such as the Glare type are menu input sockets (design.md).
@@ -36,6 +41,14 @@ INPUTS = (
     ("Glare Threshold", "NodeSocketFloat", 1.0, (0.0, 1000.0), "Brightness above which the CG blooms"),
     ("CG Blur", "NodeSocketFloat", 0.0, (0.0, 100.0),
      "Gaussian blur of the CG (colour and alpha) in pixels, to match a soft or defocused plate"),
+    ("Grain", "NodeSocketColor", (0.0, 0.0, 0.0, 1.0), None,
+     "Zero-mean grain image with the plate's grain at Grain Level (platelight.match_grain)"),
+    ("Grain Amount", "NodeSocketFloat", 0.0, (0.0, 1.0), "How much of the Grain is added to the CG"),
+    ("Grain Level", "NodeSocketColor", (1.0, 1.0, 1.0, 1.0), None,
+     "Per-channel signal level at which the Grain image has the plate's grain"),
+    ("Grain Response", "NodeSocketColor", (0.0, 0.0, 0.0, 1.0), None,
+     "Per channel, the part of the grain's variance that grows with the signal (0: the same grain "
+     "everywhere; 1: shot noise, grain ∝ √level)"),
 )
 OUTPUTS = (
     ("Image", "NodeSocketColor", "The composite"),
@@ -78,6 +91,44 @@ def _rebuild_interface(tree):
         socket.description = description
 
 
+def _grain(nodes, links, inp, cg):
+    """CG + Grain Amount · α · Grain · √(1 − r + r · (CG/α) / Grain Level), per channel; returns
+    the socket. α is the (blurred) CG's alpha: where it is 0 the grain adds exactly 0."""
+    x, y = 700, 700
+    alpha = nodes.new("CompositorNodeSeparateColor")
+    alpha.location = (x, y)
+    links.new(cg, alpha.inputs["Image"])
+    safe_alpha = nodes.new("ShaderNodeMath")
+    safe_alpha.operation = "MAXIMUM"
+    safe_alpha.location = (x, y - 200)
+    links.new(alpha.outputs["Alpha"], safe_alpha.inputs[0])
+    safe_alpha.inputs[1].default_value = RATIO_EPSILON
+    straight = _mix(nodes, links, "DIVIDE", cg, safe_alpha.outputs[0], location=(x + 200, y))
+    safe_level = _mix(nodes, links, "LIGHTEN", inp["Grain Level"], RATIO_EPSILON, location=(x + 200, y - 200))
+    relative = _mix(nodes, links, "DIVIDE", straight.outputs[2], safe_level.outputs[2], location=(x + 400, y))
+    minus_one = _mix(nodes, links, "SUBTRACT", relative.outputs[2], 1.0, location=(x + 600, y))
+    weighted = _mix(nodes, links, "MULTIPLY", minus_one.outputs[2], inp["Grain Response"], location=(x + 800, y))
+    ratio = _mix(nodes, links, "ADD", weighted.outputs[2], 1.0, location=(x + 1000, y))
+    ratio = _mix(nodes, links, "LIGHTEN", ratio.outputs[2], 0.0, location=(x + 1200, y))
+    channels = nodes.new("CompositorNodeSeparateColor")
+    channels.location = (x + 1400, y)
+    links.new(ratio.outputs[2], channels.inputs["Image"])
+    scale = nodes.new("CompositorNodeCombineColor")
+    scale.location = (x + 1800, y)
+    for k, channel in enumerate(("Red", "Green", "Blue")):
+        root = nodes.new("ShaderNodeMath")
+        root.operation = "SQRT"
+        root.location = (x + 1600, y - 60 * k)
+        links.new(channels.outputs[channel], root.inputs[0])
+        links.new(root.outputs[0], scale.inputs[channel])
+    scaled = _mix(nodes, links, "MULTIPLY", inp["Grain"], scale.outputs["Image"], location=(x + 2000, y - 200))
+    covered = _mix(nodes, links, "MULTIPLY", scaled.outputs[2], alpha.outputs["Alpha"], location=(x + 2200, y - 200))
+    # a colour mix keeps A's (the CG's) alpha
+    grained = _mix(nodes, links, "ADD", cg, covered.outputs[2], location=(x + 2400, y))
+    links.new(inp["Grain Amount"], grained.inputs[0])
+    return grained.outputs[2]
+
+
 def build_differential_group():
     """Create or rebuild the "PlateLight Differential" compositor group; returns it."""
     tree = bpy.data.node_groups.get(GROUP_NAME)
@@ -89,7 +140,7 @@ def build_differential_group():
     group_in = nodes.new("NodeGroupInput")
     group_in.location = (-1200, 0)
     group_out = nodes.new("NodeGroupOutput")
-    group_out.location = (900, 0)
+    group_out.location = (3600, 0)
     inp = group_in.outputs
 
     # --- the CG's lens and tone (never applied to the plate) ---
@@ -142,10 +193,10 @@ def build_differential_group():
     blur.inputs["Type"].default_value = "Gaussian"
     links.new(cg_out.outputs["Image"], blur.inputs["Image"])
     links.new(inp["CG Blur"], blur.inputs["Size"])
-    cg_final = blur.outputs["Image"]
+    cg_final = _grain(nodes, links, inp, blur.outputs["Image"])
 
     over = nodes.new("CompositorNodeAlphaOver")
-    over.location = (500, 0)
+    over.location = (3300, 0)
     links.new(local.outputs[2], over.inputs["Background"])
     links.new(cg_final, over.inputs["Foreground"])
     links.new(over.outputs["Image"], group_out.inputs["Image"])

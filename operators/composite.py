@@ -204,6 +204,9 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     links.new(diff.outputs["Image"], out.inputs["Image"])
     scene.compositing_node_group = tree
     scene.render.use_compositing = True
+    from .grain import wire_grain  # grain matched earlier (platelight.match_grain) stays wired
+
+    wire_grain(scene, tree)
     return tree
 
 

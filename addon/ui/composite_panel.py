@@ -36,6 +36,7 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         row = col.row(align=True)
         row.operator("platelight.setup_composite", text="Shadow Catcher").method = "CATCHER"
         row.operator("platelight.setup_composite", text="Differential").method = "DIFFERENTIAL"
+        col.operator("platelight.match_grain", text="Match Grain", icon="MOD_NOISE")
 
 
 class PLATELIGHT_PT_clip_tracking(bpy.types.Panel):

@@ -137,7 +137,7 @@ def _group_test_tree(bpy, scene, images, settings):
     return tree
 
 
-@pytest.mark.parametrize("form", ["ratio", "additive", "tone"])
+@pytest.mark.parametrize("form", ["ratio", "additive", "tone", "grain"])
 def test_group_matches_numpy_reference(bpy_clean, tmp_path, form):
     """The compositor group against the formulas written out in numpy, on random images."""
     bpy = bpy_clean
@@ -157,9 +157,10 @@ def test_group_matches_numpy_reference(bpy_clean, tmp_path, form):
     without[0, :4] = 0.0  # division guard
     with_ = without * rng.uniform(0.2, 1.8, shape + (3,))
     with_[1, :4] = 50.0   # clamp
+    grain = rng.normal(0, 0.1, shape + (3,))
+    inputs = [("Plate", plate), ("CG", np.concatenate([cg, alpha], -1)), ("With", with_), ("Without", without)]
     files = {}
-    for name, img in (("Plate", plate), ("CG", np.concatenate([cg, alpha], -1)),
-                      ("With", with_), ("Without", without)):
+    for name, img in inputs + ([("Grain", grain)] if form == "grain" else []):
         files[name] = tmp_path / f"{name}.exr"
         write_exr(files[name], img.astype(np.float32))
     settings = {"Ratio Form": 0.0 if form == "additive" else 1.0, "Shadow Clamp": 4.0}
@@ -167,6 +168,9 @@ def test_group_matches_numpy_reference(bpy_clean, tmp_path, form):
     if form == "tone":
         exposure = 0.7
         settings.update({"CG Exposure": exposure, "Tone Map": 1.0})
+    level, response, amount = np.array([0.5, 1.0, 2.0]), np.array([0.0, 0.5, 1.0]), 0.8
+    if form == "grain":
+        settings.update({"Grain Amount": amount, "Grain Level": (*level, 1.0), "Grain Response": (*response, 1.0)})
     _group_test_tree(bpy, scene, files, settings)
     out = render(bpy, scene, tmp_path / "out.exr")[..., :3]
     # numpy reference
@@ -177,6 +181,9 @@ def test_group_matches_numpy_reference(bpy_clean, tmp_path, form):
         local = plate + with_ - without
     else:
         local = plate * np.minimum(with_ / np.maximum(without, 1e-6), 4.0)
+    if form == "grain":  # grain scaled to the CG's level, weighted by its alpha
+        straight = cg_rgb / np.maximum(alpha, 1e-6)
+        cg_rgb = cg_rgb + amount * alpha * grain * np.sqrt(np.maximum(1 - response + response * straight / level, 0))
     expected = cg_rgb + (1 - alpha) * local
     np.testing.assert_allclose(out, expected, rtol=2e-5, atol=2e-5)
 

@@ -1,0 +1,1 @@
+"""bpy-free parts of the compositing: grain measurement and synthesis (grain.py)."""
