@@ -16,19 +16,25 @@ def bench_module():
     return module
 
 
+def path_traced(bpy, bench, hdri, material, samples, folder):
+    """The truth (sphere there) and the plate (sphere absent), path-traced, no denoiser; the plate
+    is written to folder/plate.exr."""
+    renders = {}
+    for name, with_sphere in (("truth", True), ("plate", False)):
+        scene, floor, sphere = bench.build(bpy, hdri, material)
+        scene.cycles.samples = samples
+        scene.cycles.use_denoising = False
+        sphere.hide_render = not with_sphere
+        renders[name], _ = bench.render(bpy, scene, folder / f"{name}.exr")
+    return renders["truth"], renders["plate"]
+
+
 def test_composite_matches_path_traced_truth(bpy_clean, tmp_path, studio_hdris):
     bpy = bpy_clean
     bench = bench_module()
     hdri = str(studio_hdris["city"])
     material = bench.MATERIALS["diffuse"]
-    renders = {}
-    for name, with_sphere in (("truth", True), ("plate", False)):
-        scene, floor, sphere = bench.build(bpy, hdri, material)
-        scene.cycles.samples = 256
-        scene.cycles.use_denoising = False
-        sphere.hide_render = not with_sphere
-        renders[name], _ = bench.render(bpy, scene, tmp_path / f"{name}.exr")
-    truth, plate = renders["truth"], renders["plate"]
+    truth, plate = path_traced(bpy, bench, hdri, material, 256, tmp_path)
     composite, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "cycles", 64,
                                    tmp_path / "composite.exr")
     obj, shadow = bench.masks(truth, plate)
@@ -50,14 +56,7 @@ def test_sbrdf_mirror_is_closer_to_path_tracing_than_the_papers_model(bpy_clean,
     bench = bench_module()
     hdri = str(studio_hdris["city"])
     material = bench.MATERIALS["mirror"]
-    renders = {}
-    for name, with_sphere in (("truth", True), ("plate", False)):
-        scene, floor, sphere = bench.build(bpy, hdri, material)
-        scene.cycles.samples = 128
-        scene.cycles.use_denoising = False
-        sphere.hide_render = not with_sphere
-        renders[name], _ = bench.render(bpy, scene, tmp_path / f"{name}.exr")
-    truth, plate = renders["truth"], renders["plate"]
+    truth, plate = path_traced(bpy, bench, hdri, material, 128, tmp_path)
     obj, _ = bench.masks(truth, plate)
     peak = float(np.percentile(truth, 99.5))
     psnr = {}
