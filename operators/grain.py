@@ -19,7 +19,7 @@ import bpy
 from bpy.props import IntProperty
 
 from .common import NeedsScene, find_plate_image
-from .plate import _NUMBERED
+from .plate import NUMBERED_FILE
 
 GRAIN_IMAGE = "PlateLight Grain"
 GRAIN_NODE = "PlateLight Grain"
@@ -62,7 +62,7 @@ def plate_frame_pixels(image, scene):
         return linear_plate(pixels, srgb)
     if image.source == "SEQUENCE":
         folder, name = os.path.split(path)
-        match = _NUMBERED.match(name)
+        match = NUMBERED_FILE.match(name)
         if match:
             prefix, digits, ext = match.groups()
             path = os.path.join(folder, f"{prefix}{file_frame:0{len(digits)}d}{ext}")

@@ -15,7 +15,8 @@ from .common import PLATE_IMAGE_NAME, NeedsScene
 from .composite import set_plate_colour_management
 
 MOVIE_EXTENSIONS = {".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".ogv"}
-_NUMBERED = re.compile(r"^(.*?)(\d+)(\.[A-Za-z0-9]+)$")
+# A numbered file of an image sequence: prefix, frame digits, extension (also read by grain.py).
+NUMBERED_FILE = re.compile(r"^(.*?)(\d+)(\.[A-Za-z0-9]+)$")
 
 
 class PlateError(Exception):
@@ -26,7 +27,7 @@ def scan_sequence(path):
     """(first, last, count) of the numbered sequence ``path`` belongs to; raises PlateError for
     missing frames. A file without a number is a single still (1, 1, 1)."""
     folder, name = os.path.split(path)
-    match = _NUMBERED.match(name)
+    match = NUMBERED_FILE.match(name)
     if not match:
         return 1, 1, 1
     prefix, digits, ext = match.groups()
