@@ -142,14 +142,13 @@ def _build(tree):
 
     # Weights of the terms.
     alpha = inp["Alpha"]
+    one_minus_spec = g.color_op("SUBTRACT", (1.0, 1.0, 1.0, 1.0), spec_albedo)
     # Energy: by default light reflected by the specular layer no longer reaches the diffuse one
     # (rho_d (1 - rho_s'), as Blender's Principled BSDF layers them); the paper adds both in full.
-    layered = g.color_op("MULTIPLY", inp["Diffuse Albedo"],
-                         g.color_op("SUBTRACT", (1.0, 1.0, 1.0, 1.0), spec_albedo))
+    layered = g.color_op("MULTIPLY", inp["Diffuse Albedo"], one_minus_spec)
     diffuse_albedo = g.mix("RGBA", inp["Paper Falloff"], layered, inp["Diffuse Albedo"])
     diffuse_w = g.mix("RGBA", alpha, (0.0, 0.0, 0.0, 1.0), diffuse_albedo)
     specular_w = g.vmath("SCALE", spec_albedo, scale=falloff_f)   # g' may exceed 1 when Cz > 1
-    one_minus_spec = g.color_op("SUBTRACT", (1.0, 1.0, 1.0, 1.0), spec_albedo)
     refr_w = g.mix("RGBA", g.math("SUBTRACT", 1.0, alpha), (0.0, 0.0, 0.0, 1.0),
                    g.color_op("MULTIPLY", inp["Diffuse Albedo"], one_minus_spec))
     emission = g.vmath("SCALE", inp["Emission Color"], scale=inp["Emission Strength"])

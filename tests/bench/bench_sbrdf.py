@@ -185,7 +185,7 @@ def main(out_dir: pathlib.Path) -> None:
              "numpy sum over every HDRI texel (albedo E(N)/pi at the pixel centres; no Cycles, no "
              f"engine code; it holds N at the pixel centre, the renders average over Cycles' 1.5-px "
              "Blackman-Harris footprint, which puts a floor of a few 1e-3 under every diffuse "
-             "error), for the mirror a {REFERENCE_SPP['mirror']}-spp Principled render (a "
+             f"error), for the mirror a {REFERENCE_SPP['mirror']}-spp Principled render (a "
              "mirror has no Monte Carlo noise besides pixel anti-aliasing; that reference's own "
              f"AA noise, about {_noise_floor(rows, 'mirror'):.4f}, is part of every mirror error). Times: wall time of `bpy.ops.render.render`, scene "
              "sync included. The SBRDF's maps (diffuse 64x128, specular at the probe's 512x1024) "
