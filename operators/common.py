@@ -2,6 +2,8 @@
 import bpy
 
 PLATE_IMAGE_NAME = "PlateLight Plate"
+# On the plate image: file frame number = scene frame + this (a sequence may start at 1001).
+PLATE_FRAME_OFFSET_KEY = "platelight_frame_offset"
 
 
 def find_plate_image(scene):

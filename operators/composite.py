@@ -21,7 +21,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 from ..node_groups.composite import build_differential_group
-from .common import find_plate_image
+from .common import PLATE_FRAME_OFFSET_KEY, find_plate_image
 
 TREE_NAME = "PlateLight Composite"
 CG_COLLECTION = "PlateLight CG"
@@ -106,7 +106,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     if plate_image.source in {"SEQUENCE", "MOVIE"}:
         plate.frame_duration = max(1, scene.frame_end - scene.frame_start + 1)
         plate.frame_start = scene.frame_start
-        plate.frame_offset = int(plate_image.get("platelight_frame_offset", 0))
+        plate.frame_offset = int(plate_image.get(PLATE_FRAME_OFFSET_KEY, 0))
         plate.use_auto_refresh = True
     diff = nodes.new("CompositorNodeGroup")
     diff.name = diff.label = "PlateLight Differential"

@@ -18,8 +18,8 @@ import tempfile
 import bpy
 from bpy.props import IntProperty
 
-from .common import NeedsScene, find_plate_image
-from .plate import NUMBERED_FILE
+from .common import PLATE_FRAME_OFFSET_KEY, NeedsScene, find_plate_image
+from .plate import sequence_frame_path
 
 GRAIN_IMAGE = "PlateLight Grain"
 GRAIN_NODE = "PlateLight Grain"
@@ -48,7 +48,7 @@ def plate_frame_pixels(image, scene):
     from ..addon.errors import PlateLightError
 
     path = bpy.path.abspath(image.filepath, library=image.library)
-    file_frame = scene.frame_current + int(image.get("platelight_frame_offset", 0))
+    file_frame = scene.frame_current + int(image.get(PLATE_FRAME_OFFSET_KEY, 0))
     srgb = image.colorspace_settings.name == "sRGB"
     if image.source == "MOVIE":
         cap = cv2.VideoCapture(path)
@@ -61,11 +61,7 @@ def plate_frame_pixels(image, scene):
             raise PlateLightError(f"Cannot read frame {file_frame} of the plate movie {path}.")
         return linear_plate(pixels, srgb)
     if image.source == "SEQUENCE":
-        folder, name = os.path.split(path)
-        match = NUMBERED_FILE.match(name)
-        if match:
-            prefix, digits, ext = match.groups()
-            path = os.path.join(folder, f"{prefix}{file_frame:0{len(digits)}d}{ext}")
+        path = sequence_frame_path(path, file_frame)
     if not os.path.isfile(path):
         raise PlateLightError(f"The plate file for frame {scene.frame_current} is missing: {path}")
     return linear_plate(read_image(path), srgb)

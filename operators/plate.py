@@ -11,11 +11,11 @@ import re
 import bpy
 from bpy.props import BoolProperty, FloatProperty, StringProperty
 
-from .common import PLATE_IMAGE_NAME, NeedsScene
+from .common import PLATE_FRAME_OFFSET_KEY, PLATE_IMAGE_NAME, NeedsScene
 from .composite import set_plate_colour_management
 
 MOVIE_EXTENSIONS = {".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".ogv"}
-# A numbered file of an image sequence: prefix, frame digits, extension (also read by grain.py).
+# A numbered file of an image sequence: prefix, frame digits, extension.
 NUMBERED_FILE = re.compile(r"^(.*?)(\d+)(\.[A-Za-z0-9]+)$")
 
 
@@ -39,6 +39,17 @@ def scan_sequence(path):
         raise PlateError(f"The plate sequence {prefix}#{ext} has {len(missing)} missing frame(s) "
                          f"({shown}); render or copy them before using it as a plate.")
     return numbers[0], numbers[-1], len(numbers)
+
+
+def sequence_frame_path(path, frame):
+    """The file of frame ``frame`` in the numbered sequence ``path`` belongs to (``path`` itself
+    for a file without a number)."""
+    folder, name = os.path.split(path)
+    match = NUMBERED_FILE.match(name)
+    if not match:
+        return path
+    prefix, digits, ext = match.groups()
+    return os.path.join(folder, f"{prefix}{frame:0{len(digits)}d}{ext}")
 
 
 def frame_rate_pair(fps):
@@ -147,7 +158,7 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
             old.user_remap(image)
             bpy.data.images.remove(old)
         image.name = PLATE_IMAGE_NAME
-        image["platelight_frame_offset"] = first - 1
+        image[PLATE_FRAME_OFFSET_KEY] = first - 1
         render.resolution_x, render.resolution_y = width, height
         render.resolution_percentage = 100
         render.pixel_aspect_x = render.pixel_aspect_y = 1.0
