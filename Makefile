@@ -1,8 +1,12 @@
 # PlateLight: the two commands a new machine needs are `make demo` and `make test`.
 # Both create the pinned virtual environment (.venv) first and install missing system packages.
 SHELL := /bin/bash
-PY_SYS ?= $(shell command -v python3.11 || echo python3)
-VENV := .venv
+# BLENDER picks the Blender release the suite runs on (requirements/blender-X.Y.txt); 5.2 LTS is
+# the default. Each release has its own virtual environment: .venv for the default, .venv-X.Y else.
+BLENDER ?= 5.2
+PY_VERSION := $(if $(filter 4.5 5.0,$(BLENDER)),3.11,3.13)
+REQUIREMENTS := requirements/blender-$(BLENDER).txt
+VENV ?= $(if $(filter 5.2,$(BLENDER)),.venv,.venv-$(BLENDER))
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.platelight-stamp
 OUT ?= out/demo
@@ -12,10 +16,10 @@ PYTEST_ARGS ?=
 
 venv: $(STAMP)
 
-$(STAMP): requirements.txt
-	@$(PY_SYS) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else "bpy 5.0.1 needs Python 3.11; set PY_SYS=/path/to/python3.11")'
-	test -x $(PY) || $(PY_SYS) -m venv $(VENV)
-	$(PY) -m pip install -q --disable-pip-version-check -r requirements.txt
+$(STAMP): $(REQUIREMENTS)
+	@test -f $(REQUIREMENTS) || { echo "No $(REQUIREMENTS): BLENDER must be one of $$(ls requirements | sed -n 's/blender-\(.*\)\.txt/\1/p' | xargs)" >&2; exit 1; }
+	test -x $(PY) || $${PY_SYS:-$$(bash tools/find-python.sh $(PY_VERSION))} -m venv $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check -r $(REQUIREMENTS)
 	bash tools/ensure-system-deps.sh $(VENV)
 	# `python -m platelight` from any folder: the checkout itself is the package. The site folder
 	# is asked for in the shell: make expands a recipe before running its first line (no venv yet).
