@@ -14,7 +14,7 @@ from ..addon.bake.layout import DEFAULT_MAPS_DIR, WORLD_FOLDER, object_maps_dir
 from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS, SBRDFParams
 from ..addon.material.presets import preset_params
-from . import probe_maps
+from . import probe_maps, ray_twin
 from .sbrdf import GROUP_NAME, LOOKUP_SOCKETS, ensure_sbrdf_group
 
 SBRDF_NODE = "PlateLight SBRDF"
@@ -58,6 +58,7 @@ def write_params(material, params: SBRDFParams) -> None:
     for spec in PARAMETERS:
         value = getattr(params, spec.name)
         node.inputs[spec.label].default_value = (*value, 1.0) if spec.kind == "color" else value
+    ray_twin.update_twin(material, params)
 
 
 def world_maps_dir(scene) -> str:
@@ -111,8 +112,8 @@ def bind_probe(material, probe_dir: str, label: str | None = None):
     source = sbrdf_node(material)
     for name, _ in LOOKUP_SOCKETS:
         tree.links.new(source.outputs[name], node.inputs[name])
-    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
-    tree.links.new(node.outputs["Shader"], out.inputs["Surface"])
+    # the camera sees the probe's emission, every other ray the Principled twin (ray_twin.py)
+    ray_twin.wire_twin(material, node.outputs["Shader"], read_params(material))
     material["platelight_probe_dir"] = probe_dir
     return node
 
@@ -161,6 +162,7 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
             if material is not None:
                 material.use_fake_user = True
                 new["platelight_source_material"] = material.name
+                ray_twin.update_twin(new, read_params(new))   # the twin is the source's look
             slot.material = new
             material = new
         else:

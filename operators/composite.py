@@ -256,7 +256,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         name="Denoise",
         description="Run OpenImageDenoise on the CG and on the shadow/local-scene passes before "
         "dividing (smooth at few samples); pixels the CG does not reach keep their raw, exact values",
-        default=False,
+        default=True,
     )
     samples: IntProperty(
         name="Samples",

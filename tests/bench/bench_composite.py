@@ -51,7 +51,14 @@ SHOT_FRAMES = 24
 SPHERE = (np.array([0.0, 0.0, 0.5]), 0.5)
 
 
-def build(bpy, hdri_path, material):
+# (location, point looked at, lens mm): the benchmark's view, and a low telephoto one that sees
+# the floor in front of the contact point (from 23 degrees up the sphere hides the floor within
+# 0.2 m of its contact; below ~15 degrees the near side shows)
+CAMERA = ((-2.2, -4.6, 2.2), (-0.3, 0.3, 0.3), 50.0)
+LOW_CAMERA = ((0.0, -3.2, 0.7), (0.0, 0.0, 0.15), 100.0)
+
+
+def build(bpy, hdri_path, material, camera=None):
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
@@ -68,10 +75,11 @@ def build(bpy, hdri_path, material):
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
     scene.camera = cam
-    cam.location = (-2.2, -4.6, 2.2)
     from mathutils import Vector
 
-    cam.rotation_euler = Vector((1.9, 4.9, -1.9)).to_track_quat("-Z", "Y").to_euler()
+    location, target, cam.data.lens = camera or CAMERA
+    cam.location = location
+    cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
     floor_mat = bpy.data.materials.new("Floor")
     floor_mat.node_tree.nodes.clear()
     diffuse = floor_mat.node_tree.nodes.new("ShaderNodeBsdfDiffuse")
@@ -133,9 +141,9 @@ def truth_and_plate(bpy, hdri_path, name, material):
     return read_exr(truth_path), read_exr(plate_path), plate_path, times
 
 
-def composite(bpy, hdri_path, material, plate_path, route, samples, out_path):
+def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, camera=None):
     """(composite image, seconds of the probe bake, seconds of everything else for one frame)."""
-    scene, floor, sphere = build(bpy, hdri_path, material)
+    scene, floor, sphere = build(bpy, hdri_path, material, camera)
     floor.platelight.phantom = True
     bake_s = 0.0
     t0 = time.perf_counter()
@@ -158,7 +166,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False):
     from its own probe (baked from its centre: floor + world). ``paper``: the paper's model as
     written (cosine falloff g', diffuse and specular added in full, the owner hidden in its probe)
     instead of PlateLight's defaults. Returns the seconds the bake took."""
-    from bl_ext.dev.platelight.node_groups import sbrdf_material
+    from bl_ext.dev.platelight.node_groups import ray_twin, sbrdf_material
 
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
     scene.platelight.probe_samples = PROBE_SAMPLES
@@ -172,6 +180,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False):
         params = sbrdf_material.read_params(material)
         params.paper_falloff = 1.0
         sbrdf_material.write_params(material, params)
+        ray_twin.set_emission_for_all_rays(material, True)   # the emission lights the phantoms
     t0 = time.perf_counter()
     # the scripting contract's bake, with the world's full importance map (its default)
     assert bpy.ops.platelight.bake_probes(all_objects=True, force=True) == {"FINISHED"}
@@ -210,6 +219,41 @@ def masks(truth, plate):
     darker = (truth @ lum) < 0.97 * (plate @ lum)
     shadow = darker & ~near
     return obj, shadow
+
+
+def contact_mask(radius=0.2):
+    """Visible floor pixels whose centre ray meets z = 0 within ``radius`` m of the sphere's
+    contact point (the ring a resting object darkens most), away from the sphere's silhouette."""
+    import cv2
+    import bpy
+
+    scene = bpy.context.scene
+    bpy.context.view_layer.update()
+    cam = scene.camera
+    tr, br, bl, tl = (np.array(cam.matrix_world @ v) for v in cam.data.view_frame(scene=scene))
+    u = (np.arange(W) + 0.5) / W
+    v = (np.arange(H) + 0.5) / H
+    top = tl + u[:, None] * (tr - tl)
+    bottom = bl + u[:, None] * (br - bl)
+    pts = top[None] + v[:, None, None] * (bottom - top)[None]
+    origin = np.array(cam.matrix_world.translation)
+    d = pts - origin
+    t = -origin[2] / d[..., 2]
+    ground = origin + t[..., None] * d
+    contact = SPHERE[0] - np.array([0.0, 0.0, SPHERE[1]])
+    near_contact = (t > 0) & (np.linalg.norm(ground - contact, axis=-1) < radius)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    oc = origin - SPHERE[0]
+    b = d @ oc
+    hit = b * b - (oc @ oc - SPHERE[1] ** 2) >= 0
+    near = cv2.dilate(hit.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    return near_contact & ~near
+
+
+def darkening(image, plate, mask):
+    """1 - (mean luminance of ``image`` / mean luminance of the plate) over ``mask``."""
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    return float(1.0 - (image[mask] @ lum).mean() / (plate[mask] @ lum).mean())
 
 
 def main(out_dir: pathlib.Path) -> None:

@@ -57,7 +57,13 @@ def test_apply_sbrdf_converts_principled_and_binds_probe(bpy_clean, tmp_path):
     assert {n.image.name for n in envs} == {f"{m}.exr" for m in sc.MAP_HEIGHTS}
     assert all(n.interpolation == "Linear" for n in envs)
     surface = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
-    assert surface.inputs["Surface"].links[0].from_node == sm.probe_node(mat)
+    # camera rays see the probe's emission, every other ray the Principled twin (ray_twin.py)
+    mix = surface.inputs["Surface"].links[0].from_node
+    assert mix.name == "PlateLight Ray Mix" and mix.inputs[2].links[0].from_node == sm.probe_node(mat)
+    twin = mix.inputs[1].links[0].from_node
+    assert twin.bl_idname == "ShaderNodeBsdfPrincipled"
+    assert tuple(twin.inputs["Base Color"].default_value[:3]) == pytest.approx((0.8, 0.1, 0.05), abs=1e-6)
+    assert twin.inputs["Emission Strength"].default_value == 0.0   # the camera sees the SBRDF's
     # Applying again rebinds, never duplicates groups or materials.
     n_groups, n_mats = len(bpy.data.node_groups), len(bpy.data.materials)
     assert bpy.ops.platelight.apply_sbrdf(preset="chrome") == {"FINISHED"}
