@@ -16,13 +16,17 @@ import os
 import bpy
 
 from ..addon.bake.layout import WORLD_FOLDER
+from ..addon.bake.layout import read_record
+from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
 from ..addon.ibl.maps import MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
 
 GROUP_PREFIX = "PlateLight Probe "
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 1
+VERSION = 3                          # 3: parallax-corrected specular look-ups (distance map)
+CENTRE_NODE = "PlateLight Probe Centre"
+PARALLAX_NODE = "PlateLight Parallax"
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
@@ -111,7 +115,13 @@ def bind_images(tree):
         name = node.get("platelight_map")
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
             continue
-        filename = map_filename(name, first if kind == "sequence" else None) if kind != "missing" else None
+        frame = first if kind == "sequence" else None
+        if kind == "missing":
+            filename = None
+        elif name == DISTANCE_NAME:
+            filename = distance_filename(frame)
+        else:
+            filename = map_filename(name, frame)
         previous = node.image
         if filename is None or not os.path.isfile(os.path.join(path, filename)):
             node.image = None                      # this map was not baked: the lobe reads black
@@ -131,6 +141,36 @@ def bind_images(tree):
             user.frame_duration = SEQUENCE_FRAMES
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
+    _bind_parallax(tree, path, kind, first)
+
+
+def _bind_parallax(tree, path, kind, first):
+    """The probe's centre (from its bake record) and the parallax switch: on when the scene asks
+    for it (scene.platelight.probe_parallax) and the folder has a distance map and a centre."""
+    centre_node, switch = tree.nodes.get(CENTRE_NODE), tree.nodes.get(PARALLAX_NODE)
+    if centre_node is None or switch is None:
+        return
+    record = read_record(path, first if kind == "sequence" else None) if kind != "missing" else {}
+    origin = record.get("origin")
+    distance_node = next((n for n in tree.nodes if n.get("platelight_map") == DISTANCE_NAME), None)
+    has_map = distance_node is not None and distance_node.image is not None
+    if origin is not None:
+        for axis, value in zip("XYZ", origin):
+            centre_node.inputs[axis].default_value = float(value)
+    scene = getattr(bpy.context, "scene", None)
+    wanted = bool(getattr(getattr(scene, "platelight", None), "probe_parallax", True))
+    switch.outputs[0].default_value = 1.0 if (wanted and has_map and origin is not None) else 0.0
+
+
+def set_parallax(enabled: bool) -> int:
+    """Switch parallax correction in every probe group (the scene setting's update); returns how
+    many groups were touched."""
+    count = 0
+    for tree in bpy.data.node_groups:
+        if tree.bl_idname == "ShaderNodeTree" and FOLDER_KEY in tree and PARALLAX_NODE in tree.nodes:
+            bind_images(tree)
+            count += 1
+    return count
 
 
 def _drop_dangling(image):
@@ -165,6 +205,57 @@ def _folder_key(folder: str) -> str:
     return os.path.normpath(os.path.abspath(folder))
 
 
+def _parallax(g, env, direction):
+    """The specular look-up direction corrected for the shading point's offset from the probe
+    centre: the distance-impostor search of addon/ibl/distance.py (its numpy reference), a linear
+    search over geometric steps, then secant steps. The switch (0/1, set by the binding) falls
+    back to the uncorrected direction, as does a ray that meets nothing."""
+    position = g.node("ShaderNodeNewGeometry").outputs["Position"]
+    centre = g.node("ShaderNodeCombineXYZ")
+    centre.name = centre.label = CENTRE_NODE
+    switch = g.node("ShaderNodeValue")
+    switch.name = switch.label = PARALLAX_NODE
+    switch.outputs[0].default_value = 0.0
+    p = g.vmath("SUBTRACT", position, centre.outputs["Vector"])
+    reflected = g.vmath("NORMALIZE", direction)
+    p_len = g.vmath("LENGTH", p)
+
+    def point(t):
+        return g.vmath("ADD", p, g.vmath("SCALE", reflected, scale=t))
+
+    def s(t):
+        q = point(t)
+        node = g.node("ShaderNodeTexEnvironment", interpolation="Closest")
+        node["platelight_map"] = DISTANCE_NAME
+        g.link(q, node.inputs["Vector"])
+        return g.math("SUBTRACT", g.vmath("LENGTH", q), node.outputs["Color"])   # colour -> r
+
+    def pick(flag, new, old):                       # flag ? new : old   (flag is 0 or 1)
+        return g.math("MULTIPLY_ADD", flag, g.math("SUBTRACT", new, old), old)
+
+    t_a, s_a = 0.0, g.math("MINIMUM", s(0.0), -1e-4)
+    t_b, s_b, found = 0.0, s_a, 0.0
+    for k in range(STEPS):
+        t_k = g.math("MULTIPLY", p_len, STEP_START * 2.0 ** k)
+        s_k = s(t_k)
+        newly = g.math("MULTIPLY", g.math("SUBTRACT", 1.0, found), g.math("GREATER_THAN", s_k, 0.0))
+        t_b, s_b = pick(newly, t_k, t_b), pick(newly, s_k, s_b)
+        before = g.math("SUBTRACT", g.math("SUBTRACT", 1.0, found), newly)
+        t_a, s_a = pick(before, t_k, t_a), pick(before, s_k, s_a)
+        found = g.math("MAXIMUM", found, newly)
+
+    def secant():
+        return g.math("ADD", t_a, g.math("DIVIDE", g.math("MULTIPLY", g.math("SUBTRACT", t_b, t_a), s_a),
+                                         g.math("MINIMUM", g.math("SUBTRACT", s_a, s_b), -1e-9)))
+    for _ in range(SECANT_STEPS):
+        t_m = secant()
+        s_m = s(t_m)
+        hit = g.math("GREATER_THAN", s_m, 0.0)
+        t_b, s_b, t_a, s_a = pick(hit, t_m, t_b), pick(hit, s_m, s_b), pick(hit, t_a, t_m), pick(hit, s_a, s_m)
+    corrected = g.mix("VECTOR", found, reflected, g.vmath("NORMALIZE", point(secant())))
+    return g.mix("VECTOR", switch.outputs[0], reflected, corrected)
+
+
 def _build(tree):
     g = Graph(tree)
     gin, gout = io_nodes(g)
@@ -190,7 +281,8 @@ def _build(tree):
         return total
 
     diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], env("diffuse", inp["Diffuse Direction"]))
-    specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(inp["Specular Direction"]))
+    specular_direction = _parallax(g, env, inp["Specular Direction"])
+    specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(specular_direction))
     channels = []
     for index, channel in enumerate("RGB"):
         sep = g.node("ShaderNodeSeparateColor")

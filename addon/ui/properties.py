@@ -48,6 +48,12 @@ class PlateLightObjectSettings(bpy.types.PropertyGroup):
     )
 
 
+def _parallax_changed(settings, context):
+    from ...node_groups.probe_maps import set_parallax
+
+    set_parallax(settings.probe_parallax)
+
+
 class PlateLightSceneSettings(bpy.types.PropertyGroup):
     probe_height: IntProperty(
         name="Probe Height",
@@ -92,6 +98,14 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         "probe's rays, not removed): the floor under a ball is seen shadowed from the ball, as it "
         "is. Off: the paper's probe, with the owner simply hidden",
         default=True,
+    )
+    probe_parallax: BoolProperty(
+        name="Parallax Correction",
+        description="Follow each reflected ray from the shading point to the surface the probe's "
+        "distance map holds (distance impostors), so nearby things reflect where they are; off: "
+        "the paper's look-up from the probe's centre",
+        default=True,
+        update=lambda self, context: _parallax_changed(self, context),
     )
     pack_maps: BoolProperty(
         name="Pack Maps",

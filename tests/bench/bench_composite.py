@@ -58,7 +58,27 @@ CAMERA = ((-2.2, -4.6, 2.2), (-0.3, 0.3, 0.3), 50.0)
 LOW_CAMERA = ((0.0, -3.2, 0.7), (0.0, 0.0, 0.15), 100.0)
 
 
-def build(bpy, hdri_path, material, camera=None):
+# a coloured box beside the sphere: a nearby real thing its reflection must show where it is
+BOX = dict(centre=(1.0, -0.75, 0.35), size=0.7, colour=(0.8, 0.08, 0.05))
+
+
+def add_box(bpy, scene, centre, size, colour):
+    mesh = bpy.data.meshes.new("Box")
+    h = size / 2
+    verts = [(x * h, y * h, z * h) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    mesh.from_pydata(verts, [], faces)
+    mat = bpy.data.materials.new("Box")
+    mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*colour, 1)
+    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.8
+    mesh.materials.append(mat)
+    box = bpy.data.objects.new("Box", mesh)
+    box.location = centre
+    scene.collection.objects.link(box)
+    return box
+
+
+def build(bpy, hdri_path, material, camera=None, box=None):
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
@@ -109,6 +129,8 @@ def build(bpy, hdri_path, material, camera=None):
     sphere = bpy.data.objects.new("Sphere", smesh)
     sphere.location = tuple(SPHERE[0])
     scene.collection.objects.link(sphere)
+    if box is not None:
+        add_box(bpy, scene, **box)
     return scene, floor, sphere
 
 
@@ -141,10 +163,12 @@ def truth_and_plate(bpy, hdri_path, name, material):
     return read_exr(truth_path), read_exr(plate_path), plate_path, times
 
 
-def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, camera=None):
+def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, camera=None, box=None):
     """(composite image, seconds of the probe bake, seconds of everything else for one frame)."""
-    scene, floor, sphere = build(bpy, hdri_path, material, camera)
+    scene, floor, sphere = build(bpy, hdri_path, material, camera, box)
     floor.platelight.phantom = True
+    if box is not None:
+        scene.objects["Box"].platelight.phantom = True
     bake_s = 0.0
     t0 = time.perf_counter()
     if route == "lamps":

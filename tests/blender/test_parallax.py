@@ -1,0 +1,142 @@
+"""Parallax-corrected probe look-ups (issue 11): the distance map baked with each probe, and the
+mirror sphere beside a phantom box reflecting the box where path tracing does."""
+import importlib.util
+
+import numpy as np
+import pytest
+
+import support
+from platelight.addon.exr_io import read_exr
+from platelight.addon.ibl import distance as dm
+from platelight.addon.ibl.equirect import row_elevations
+
+W, H = 160, 90
+CAMERA = ((-0.9, -4.4, 1.4), (0.25, -0.2, 0.45), 60.0)
+
+
+def bench_module():
+    path = support.REPO / "tests" / "bench" / "bench_composite.py"
+    spec = importlib.util.spec_from_file_location("bench_composite_for_parallax", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.W, module.H = W, H
+    return module
+
+
+def test_distance_map_is_the_radial_distance(bpy_clean, tmp_path, studio_hdris):
+    """A probe 0.5 m above a floor: below the horizon the map holds 0.5 / sin(depression), the
+    radial distance; above it, FAR (the world)."""
+    bpy = bpy_clean
+    bench = bench_module()
+    scene, floor, sphere = bench.build(bpy, str(studio_hdris["city"]), bench.MATERIALS["mirror"])
+    scene.platelight.maps_dir = str(tmp_path / "maps")
+    sphere.platelight.enabled = True
+    bpy.context.view_layer.objects.active = sphere
+    sphere.select_set(True)
+    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
+    assert bpy.ops.platelight.bake_probes(all_objects=True, force=True) == {"FINISHED"}
+    dist = read_exr(tmp_path / "maps" / "Sphere" / dm.distance_filename(), "RGB")[..., 0]
+    assert dist.shape == (4 * scene.platelight.probe_height, 8 * scene.platelight.probe_height)
+    elevation = row_elevations(dist.shape[0])
+    below = elevation < -np.radians(3)              # away from the horizon's mixed texels
+    expected = 0.5 / np.sin(-elevation[below])
+    # 1 spp jitters each sample within its texel: compare the row medians
+    rel = np.abs(np.median(dist[below], axis=1) / expected - 1)
+    assert rel.max() < 0.03, rel.max()
+    assert (dist[elevation > np.radians(1)] == dm.FAR).all()
+    # the bake leaves no helper datablocks behind
+    assert "PlateLight Probe Distance" not in bpy.data.materials
+    assert "PlateLight Probe Distance" not in bpy.data.worlds
+
+
+def test_mirror_reflects_the_box_where_path_tracing_does(bpy_clean, tmp_path, studio_hdris):
+    bpy = bpy_clean
+    bench = bench_module()
+    hdri = str(studio_hdris["city"])
+    material = bench.MATERIALS["mirror"]
+    renders = {}
+    for name, with_sphere in (("truth", True), ("plate", False)):
+        scene, _floor, sphere = bench.build(bpy, hdri, material, CAMERA, bench.BOX)
+        scene.cycles.samples = 32
+        scene.cycles.use_denoising = False
+        scene.cycles.blur_glossy = 0.0           # Filter Glossy 0: an unbiased mirror
+        sphere.hide_render = not with_sphere
+        renders[name], _ = bench.render(bpy, scene, tmp_path / f"{name}.exr")
+    truth, plate = renders["truth"], renders["plate"]
+    bench.build(bpy, hdri, material, CAMERA, bench.BOX)
+    obj, _ = bench.masks(truth, plate)
+
+    def red(image):
+        return (image[..., 0] > 2.5 * image[..., 1]) & (image[..., 0] > 0.05) & obj
+
+    truth_red = red(truth)
+    assert truth_red.sum() > 80                   # measured 135 px of box in the mirror
+    iou = {}
+    for parallax in (True, False):
+        original = bench.render
+
+        def render(bpy_, scene, path):
+            scene.platelight.probe_parallax = parallax
+            return original(bpy_, scene, path)
+
+        bench.render = render
+        try:
+            image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf", 2,
+                                          tmp_path / f"parallax_{parallax}.exr", camera=CAMERA, box=bench.BOX)
+        finally:
+            bench.render = original
+        mask = red(image)
+        iou[parallax] = (mask & truth_red).sum() / (mask | truth_red).sum()
+    assert iou[True] >= 0.8, iou                   # measured 0.87
+    assert iou[False] < 0.6, iou                   # the centre probe's look-up: 0.42
+
+
+def test_distance_map_bad_input_is_said_in_a_sentence():
+    """Zero-distance texels and an object reaching past what its probe sees give one sentence
+    each; a probe that sees only the world leaves every direction as it is (no phantoms)."""
+    depth = np.full((32, 64), 2.0, np.float32)
+    depth[:4] = 0.0                                                  # centre touching something
+    depth[-4:] = 1e10                                                # the world
+    dist, warnings = dm.distance_map(depth, clip_end=1000.0)
+    assert len(warnings) == 1 and "zero distance" in warnings[0]
+    assert (dist[-4:] == dm.FAR).all() and (dist[:4] == 0).all()
+
+    inside = np.full((32, 64), 0.3, np.float32)                     # walls 0.3 m away
+    rng = np.random.default_rng(0)
+    offsets = rng.normal(size=(500, 3))
+    offsets *= 0.5 / np.linalg.norm(offsets, axis=1, keepdims=True)  # a 0.5 m ball's surface
+    sentence = dm.coverage_warning(inside, offsets)
+    assert sentence is not None and "beyond the surfaces its probe sees" in sentence
+    assert dm.coverage_warning(np.full((32, 64), 0.6, np.float32), offsets) is None
+
+    # only the world: the corrected direction is the reflected one
+    world = np.full((32, 64), dm.FAR, np.float32)
+    p = offsets
+    reflected = rng.normal(size=(500, 3))
+    reflected /= np.linalg.norm(reflected, axis=1, keepdims=True)
+    assert np.allclose(dm.parallax_directions(world, p, reflected), reflected, atol=1e-9)
+    # zero-distance texels everywhere: finite directions (the search finds the crossing at once)
+    out = dm.parallax_directions(np.zeros((32, 64), np.float32), p, reflected)
+    assert np.isfinite(out).all() and np.allclose(np.linalg.norm(out, axis=1), 1)
+
+
+def test_parallax_search_finds_a_plane():
+    """The numpy reference of the node group's search against the exact intersection with a
+    floor 0.5 m below the centre (a map of h / sin(depression))."""
+    height = 256
+    elevation = row_elevations(height)
+    dist = np.where(elevation[:, None] < 0, 0.5 / np.sin(-np.minimum(elevation, -1e-6))[:, None],
+                    dm.FAR) * np.ones((1, 2 * height))
+    dist = np.minimum(dist, dm.FAR).astype(np.float32)
+    rng = np.random.default_rng(1)
+    p = rng.normal(size=(400, 3))
+    p *= 0.45 / np.linalg.norm(p, axis=1, keepdims=True)
+    reflected = rng.normal(size=(400, 3))
+    reflected[:, 2] = -np.abs(reflected[:, 2]) - 0.3               # towards the floor
+    reflected /= np.linalg.norm(reflected, axis=1, keepdims=True)
+    t = (-0.5 - p[:, 2]) / reflected[:, 2]
+    hit = p + t[:, None] * reflected
+    exact = hit / np.linalg.norm(hit, axis=1, keepdims=True)
+    got = dm.parallax_directions(dist, p, reflected)
+    angle = np.degrees(np.arccos(np.clip((got * exact).sum(1), -1, 1)))
+    assert np.median(angle) < 0.5 and np.percentile(angle, 95) < 2.0, (np.median(angle), angle.max())
