@@ -22,6 +22,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 from ..node_groups.composite import build_differential_group
 from .common import PLATE_FRAME_OFFSET_KEY, find_plate_image
+from .eevee_check import NO_GL_SENTENCE, eevee_available
 
 TREE_NAME = "PlateLight Composite"
 CG_COLLECTION = "PlateLight CG"
@@ -29,6 +30,7 @@ PHANTOM_COLLECTION = "PlateLight Phantoms"
 LAYER_CG = "PlateLight CG"
 LAYER_LOCAL = "PlateLight Local"
 LAYER_WITHOUT = "PlateLight Local Without"
+LAYER_SHADOWS = "PlateLight Shadows"
 RENDERABLE = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 
 
@@ -79,7 +81,9 @@ def _configure_layer(layer, cg_coll, phantom_coll, cg_state, phantom_holdout):
     cg.exclude = cg_state == "excluded"
     if not cg.exclude:
         cg.indirect_only = cg_state == "indirect"
-        cg.holdout = False
+        # EEVEE has no indirect-only: a held-out CG still casts its shadows there and the
+        # pixels it covers are the CG layer's anyway (alpha 1)
+        cg.holdout = cg_state == "holdout"
     ph = _layer_collection(layer, phantom_coll)
     ph.exclude = False
     ph.holdout = phantom_holdout
@@ -180,8 +184,15 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         alpha_zero.inputs[2].default_value = 0.0
         cg_image = denoised_unless(cg_image, alpha_zero.outputs[0], (-300, 100))
     links.new(cg_image, diff.inputs["CG"])
-    if method == "CATCHER":
-        catcher = cg.outputs["Shadow Catcher"]
+    if method in ("CATCHER", "LAYERED"):
+        source = cg
+        if method == "LAYERED":              # the shadows from their own layer and samples
+            source = nodes.new("CompositorNodeRLayers")
+            source.name = source.label = LAYER_SHADOWS
+            source.scene = scene
+            source.layer = LAYER_SHADOWS
+            source.location = (-600, -300)
+        catcher = source.outputs["Shadow Catcher"]
         if denoise_shadows:
             catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, -250)), (-300, -200))
         links.new(catcher, diff.inputs["With"])
@@ -210,6 +221,17 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     return tree
 
 
+def configure_eevee(scene):
+    """EEVEE's differential route: the world's sun becomes a shadow-casting light (EEVEE's sun
+    extraction), shadows and ray tracing on, so phantoms get the CG's shadows."""
+    scene.eevee.use_shadows = True
+    scene.eevee.use_raytracing = True
+    world = scene.world
+    if world is not None:
+        world.use_sun_shadow = True
+        world.sun_threshold = min(world.sun_threshold, 10.0)
+
+
 def set_plate_colour_management(scene):
     """Plates pass through unchanged: no view transform, look, exposure or gamma."""
     view = scene.view_settings
@@ -235,10 +257,26 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         items=(
             ("CATCHER", "Shadow Catcher", "One render: phantoms are shadow catchers; the catcher pass "
              "is the with/without ratio (fast)"),
+            ("LAYERED", "Layered Catcher", "Two renders: the CG alone at CG Samples (noise-free "
+             "SBRDF materials need few), the shadows on the catchers at Samples, denoised"),
             ("DIFFERENTIAL", "Differential", "Debevec's three renders: CG, local scene with CG and "
              "without CG (additive or ratio form)"),
         ),
         default="CATCHER",
+    )
+    engine: EnumProperty(
+        name="Engine",
+        items=(("CYCLES", "Cycles", "Path-traced shadows (shadow catchers)"),
+               ("EEVEE", "EEVEE", "Rasterised differential rendering (EEVEE has no shadow "
+                "catcher): three fast renders, shadows from EEVEE's shadow maps, the world's sun "
+                "extracted as a shadow-casting light")),
+        default="CYCLES",
+    )
+    cg_samples: IntProperty(
+        name="CG Samples",
+        description="Samples of the CG layer in the Layered method (0: the scene's); SBRDF "
+        "materials are noise-free, so a few anti-alias the edges",
+        default=4, min=0, max=1 << 20,
     )
     ratio_form: BoolProperty(
         name="Ratio Form",
@@ -288,11 +326,22 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                         "is a phantom or hidden from render.")
             return {"CANCELLED"}
 
+        method = self.method
+        if self.engine == "EEVEE":
+            if not eevee_available():
+                self.report({"WARNING"}, NO_GL_SENTENCE)
+                engine = "CYCLES"
+            else:
+                engine, method = "BLENDER_EEVEE", "DIFFERENTIAL"
+        else:
+            engine = "CYCLES"
+
         # --- build
-        scene.render.engine = "CYCLES"
+        scene.render.engine = engine
         scene.render.film_transparent = True
         if self.samples:
             scene.cycles.samples = self.samples
+            scene.eevee.taa_render_samples = self.samples
         # The render's own denoiser and adaptive sampling change every pixel differently in each
         # layer, so With/Without would no longer cancel where the CG does not reach (measured:
         # ±3-7 % speckle over the whole plate at 16 spp). Denoise in the compositor instead.
@@ -307,26 +356,36 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             ob.is_shadow_catcher = False
             ob.is_holdout = False
         for ob in phantoms:
-            ob.is_shadow_catcher = self.method == "CATCHER"
+            ob.is_shadow_catcher = method in ("CATCHER", "LAYERED")
             ob.is_holdout = False
 
-        ours = {LAYER_CG} if self.method == "CATCHER" else {LAYER_CG, LAYER_LOCAL, LAYER_WITHOUT}
+        ours = {LAYER_CG, LAYER_LOCAL, LAYER_WITHOUT, LAYER_SHADOWS}
         for layer in scene.view_layers:
             if layer.name not in ours:
                 layer.use = False
         cg_layer = _view_layer(scene, LAYER_CG)
-        cg_layer.cycles.use_pass_shadow_catcher = self.method == "CATCHER"
-        _configure_layer(cg_layer, cg_coll, phantom_coll, "visible", self.method != "CATCHER")
-        if self.method == "DIFFERENTIAL":
-            _configure_layer(_view_layer(scene, LAYER_LOCAL), cg_coll, phantom_coll, "indirect", False)
+        cg_layer.cycles.use_pass_shadow_catcher = method == "CATCHER"
+        cg_layer.samples = self.cg_samples if method == "LAYERED" else 0
+        _configure_layer(cg_layer, cg_coll, phantom_coll, "visible", method != "CATCHER")
+        if method == "DIFFERENTIAL":
+            local_cg = "holdout" if engine == "BLENDER_EEVEE" else "indirect"
+            _configure_layer(_view_layer(scene, LAYER_LOCAL), cg_coll, phantom_coll, local_cg, False)
             _configure_layer(_view_layer(scene, LAYER_WITHOUT), cg_coll, phantom_coll, "excluded", False)
-        else:
-            for name in (LAYER_LOCAL, LAYER_WITHOUT):
-                if name in scene.view_layers:
-                    scene.view_layers[name].use = False
+        if method == "LAYERED":
+            shadows = _view_layer(scene, LAYER_SHADOWS)
+            shadows.cycles.use_pass_shadow_catcher = True
+            shadows.samples = 0
+            _configure_layer(shadows, cg_coll, phantom_coll, "indirect", False)
+        ours = {"CATCHER": {LAYER_CG}, "LAYERED": {LAYER_CG, LAYER_SHADOWS},
+                "DIFFERENTIAL": {LAYER_CG, LAYER_LOCAL, LAYER_WITHOUT}}[method]
+        for name in (LAYER_LOCAL, LAYER_WITHOUT, LAYER_SHADOWS):
+            if name in scene.view_layers and name not in ours:
+                scene.view_layers[name].use = False
+        if engine == "BLENDER_EEVEE":
+            configure_eevee(scene)
         if context.window is not None:
             context.window.view_layer = cg_layer
-        build_compositor_tree(scene, plate_image, self.method, self.ratio_form, self.shadow_clamp,
+        build_compositor_tree(scene, plate_image, method, self.ratio_form, self.shadow_clamp,
                               self.denoise_shadows)
 
         if not phantoms:
@@ -334,7 +393,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                         "phantoms: the CG casts no shadows and nothing real hides it (mark stand-ins "
                         "for real surfaces as Phantom).")
         else:
-            self.report({"INFO"}, f"Composite set up ({self.method.lower()}): {len(cg)} CG object(s), "
+            self.report({"INFO"}, f"Composite set up ({method.lower()}, {engine.lower()}): {len(cg)} CG object(s), "
                         f"{len(phantoms)} phantom(s), plate '{plate_image.name}'.")
         return {"FINISHED"}
 
