@@ -12,7 +12,7 @@ STAMP := $(VENV)/.platelight-stamp
 OUT ?= out/demo
 PYTEST_ARGS ?=
 
-.PHONY: venv test test-fast demo bench dist validate clean
+.PHONY: venv test test-fast demo bench bench-960 bench-1080 bench-gpu dist validate clean
 
 venv: $(STAMP)
 
@@ -39,6 +39,17 @@ demo: venv
 
 bench: venv
 	$(PY) tests/bench/run_all.py --out docs/bench
+
+# the compositing benchmark at production sizes (long: truths at 512 spp, cached in bench_out/)
+bench-960: venv
+	PLATELIGHT_BENCH_SIZE=960x540 $(PY) tests/bench/run_all.py --out docs/bench --only composite
+
+bench-1080: venv
+	PLATELIGHT_BENCH_SIZE=1920x1080 $(PY) tests/bench/run_all.py --out docs/bench --only composite
+
+# Cycles on the GPU and EEVEE on a real GPU; stops with one sentence where Cycles finds no GPU
+bench-gpu: venv
+	PLATELIGHT_BENCH_DEVICE=GPU PLATELIGHT_BENCH_SIZE=960x540 $(PY) tests/bench/run_all.py --out docs/bench --only composite
 
 validate: venv
 	$(PY) tools/extension.py validate

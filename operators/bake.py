@@ -429,16 +429,21 @@ class ProbeBake:
             ob.platelight.probe_status = "stale"
             return
         else:
+            # parallax corrects the specular/glossy look-ups only: a matte object needs no distances
+            wants_distance = any(name != "diffuse" for name in maps)
             if self.scene.platelight.probe_owner_shadows:
-                env = self.render_probe(origin, shadow_only=[ob])
+                env = self.render_probe(origin, shadow_only=[ob], distance=wants_distance)
             else:                                       # the paper: the owner is simply hidden
-                env = self.render_probe(origin, hidden=[ob])
+                env = self.render_probe(origin, hidden=[ob], distance=wants_distance)
             result = compute_maps(env, self.map_settings(), which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
-            self.warnings.extend(f"{ob.name}: {w}" for w in write_probe_distance(
-                self._distance, folder, key_frame,
-                surface_points(ob, self.context.evaluated_depsgraph_get()) - origin))
+            if wants_distance:
+                self.warnings.extend(f"{ob.name}: {w}" for w in write_probe_distance(
+                    self._distance, folder, key_frame,
+                    surface_points(ob, self.context.evaluated_depsgraph_get()) - origin))
+            else:
+                distance_maps.remove_distance(folder, key_frame)
             layout.remove_other_maps(folder, key_frame, keep=maps)
             layout.write_record(folder, key_frame, digest, maps, object=ob.name, scene_frame=frame,
                                 origin=[float(x) for x in origin],

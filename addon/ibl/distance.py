@@ -106,6 +106,14 @@ def write_distance(folder, distance: np.ndarray, frame: int | None = None) -> st
     return path
 
 
+def remove_distance(folder, frame: int | None = None) -> None:
+    """Remove a distance map no longer wanted (the object's material became matte)."""
+    try:
+        os.remove(os.path.join(os.fspath(folder), distance_filename(frame)))
+    except FileNotFoundError:
+        pass
+
+
 def _equirect_lookup(distance: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Nearest-texel lookup in the Environment Texture's layout (equirect.py)."""
     h, w = distance.shape

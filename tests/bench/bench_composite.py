@@ -1,22 +1,23 @@
-"""Benchmark of AR compositing (issue 6) against path-traced ground truth.
+"""Benchmark of AR compositing (issues 6 and 11) against path-traced ground truth, at real sizes.
 
-A sphere (diffuse, mirror, glossy) on a grey floor under a real probe (the bundled 'city' HDRI,
-with a sun). The truth: Cycles path-traces the sphere on the floor at high samples (the "filmed"
-footage with the object really there). The plate: the same without the sphere. Then the sphere
-is composited onto the plate with the floor as a phantom by
-  - PlateLight: lights from the probe (sun + 16 median-cut lights) light the floor's shadow,
-    the CG sees the world in reflections, Cycles shadow-catcher composite, N samples, OIDN;
-  - Cycles' own route: the world lights everything, shadow catcher, N samples, OIDN.
-PSNR against the truth over the object and over the shadowed floor separately (masks from the
-analytic sphere and from the truth's own shadow), and total time (lights + render + composite).
-Writes docs/bench/composite.md and docs/bench/composite.png.
+Scenes: a sphere (diffuse, mirror, glossy, glossy anisotropic; and a mirror sphere beside a red
+phantom box) on a grey floor under the bundled 'city' HDRI. A 24-frame shot with an orbiting
+camera; its first and last frames are path-traced with the sphere (truth) and without (plate),
+then the sphere is composited onto the plate by each route: PlateLight (Cycles default,
+layered, EEVEE, the paper's model) and Cycles' shadow catcher as Cycles documents it, at 16/64/256
+spp with OIDN. PSNR over the object, the shadow and the frame; per-frame time of the shot.
+Writes docs/bench/composite.md/.png (480x270) or composite_<W>x<H>.md/.png.
 
-Run: `make bench` or `.venv/bin/python tests/bench/bench_composite.py`.
+Run: `make bench` (480x270), `make bench-960`, `make bench-1080`, `make bench-gpu` (Cycles on
+the GPU, EEVEE on a real GPU; only where one exists). Environment: PLATELIGHT_BENCH_SIZE=WxH,
+PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
+PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load).
 """
 from __future__ import annotations
 
 import json
 import math
+import os
 import pathlib
 import sys
 import time
@@ -30,20 +31,19 @@ import conftest  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 
 W, H = 128, 72
-TRUTH_SAMPLES = 512
+TRUTH_SAMPLES = int(os.environ.get("PLATELIGHT_BENCH_TRUTH_SPP", 512))
 HDRI = "city"
 CACHE = support.REPO / "bench_out" / "composite"
 MATERIALS = {
     "diffuse": dict(colour=(0.7, 0.7, 0.7), roughness=1.0, metallic=0.0),
     "mirror": dict(colour=(0.9, 0.9, 0.9), roughness=0.0, metallic=1.0),
     "glossy": dict(colour=(0.8, 0.5, 0.3), roughness=0.3, metallic=1.0),
+    "anisotropic": dict(colour=(0.9, 0.9, 0.9), roughness=0.3, metallic=1.0, anisotropic=0.8),
 }
-ROUTES = (("platelight sbrdf", (1, 2, 4, 16)), ("platelight sbrdf (paper)", (1, 4, 16)),
-          ("platelight lamps", (4, 16, 64)), ("platelight sun+sky", (2, 4, 16, 64)),
-          ("cycles catcher", (1, 2, 4, 16, 64, 192)))
-ROUTE_KEYS = {"platelight sbrdf": "sbrdf", "platelight sbrdf (paper)": "sbrdf_paper",
-              "platelight lamps": "lamps", "platelight sun+sky": "sunsky", "cycles catcher": "cycles"}
-REFERENCE_ROUTE = "cycles catcher"
+# setup_composite's arguments per route (the rest are its defaults)
+SETUP = {"sbrdf": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
+         "sbrdf_layered": dict(method="LAYERED", cg_samples=4),
+         "sbrdf_eevee": dict(engine="EEVEE")}
 PROBE_SAMPLES = 64
 # Probes are view-independent: in a shot where the camera moves and the objects stand still (the
 # paper's AR case) one bake serves every frame. Times are reported per frame of such a shot too.
@@ -125,6 +125,7 @@ def build(bpy, hdri_path, material, camera=None, box=None):
     bsdf.inputs["Base Color"].default_value = (*material["colour"], 1)
     bsdf.inputs["Roughness"].default_value = material["roughness"]
     bsdf.inputs["Metallic"].default_value = material["metallic"]
+    bsdf.inputs["Anisotropic"].default_value = material.get("anisotropic", 0.0)
     smesh.materials.append(mat)
     sphere = bpy.data.objects.new("Sphere", smesh)
     sphere.location = tuple(SPHERE[0])
@@ -143,26 +144,6 @@ def render(bpy, scene, path):
     return read_exr(path), time.perf_counter() - t0
 
 
-def truth_and_plate(bpy, hdri_path, name, material):
-    """The path-traced truth (sphere present) and plate (sphere absent), cached on disk."""
-    CACHE.mkdir(parents=True, exist_ok=True)
-    truth_path = CACHE / f"truth_{name}_{TRUTH_SAMPLES}.exr"
-    plate_path = CACHE / f"plate_{TRUTH_SAMPLES}.exr"
-    times = {}
-    if not truth_path.exists():
-        scene, floor, sphere = build(bpy, hdri_path, material)
-        scene.cycles.samples = TRUTH_SAMPLES
-        scene.cycles.use_denoising = False
-        _, times["truth_s"] = render(bpy, scene, truth_path)
-    if not plate_path.exists():
-        scene, floor, sphere = build(bpy, hdri_path, material)
-        scene.cycles.samples = TRUTH_SAMPLES
-        scene.cycles.use_denoising = False
-        sphere.hide_render = True
-        _, times["plate_s"] = render(bpy, scene, plate_path)
-    return read_exr(truth_path), read_exr(plate_path), plate_path, times
-
-
 def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, camera=None, box=None):
     """(composite image, seconds of the probe bake, seconds of everything else for one frame)."""
     scene, floor, sphere = build(bpy, hdri_path, material, camera, box)
@@ -176,10 +157,11 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, ca
         assert bpy.ops.platelight.lights_from_probe(mode="LIGHTS", count=16) == {"FINISHED"}
     elif route == "sunsky":
         assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
-    elif route in ("sbrdf", "sbrdf_paper"):
+    elif route.startswith("sbrdf"):
         bake_s = sbrdf_sphere(bpy, scene, sphere, out_path, paper=route == "sbrdf_paper")
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
-    assert bpy.ops.platelight.setup_composite(samples=samples, denoise_shadows=True) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(samples=samples, denoise_shadows=True,
+                                              **SETUP[route]) == {"FINISHED"}
     setup = time.perf_counter() - t0 - bake_s
     image, render_time = render(bpy, scene, out_path)
     return image, bake_s, setup + render_time
@@ -280,30 +262,172 @@ def darkening(image, plate, mask):
     return float(1.0 - (image[mask] @ lum).mean() / (plate[mask] @ lum).mean())
 
 
+# ------------------------------------------------------------------ the shot benchmark (issue 11)
+
+SIZE = os.environ.get("PLATELIGHT_BENCH_SIZE", "480x270")
+# Scenes of the shot benchmark: (material, with the coloured phantom box beside the sphere)
+SHOT_SCENES = {
+    "diffuse": ("diffuse", False), "mirror": ("mirror", False), "glossy": ("glossy", False),
+    "anisotropic": ("anisotropic", False), "mirror + box": ("mirror", True),
+}
+SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight layered", "sbrdf_layered", (16,)),
+               ("platelight eevee", "sbrdf_eevee", (4,)), ("platelight (paper)", "sbrdf_paper", (16,)),
+               ("catcher", "cycles", (16, 64, 256)))
+SHOT_REFERENCE = "catcher"
+# The shot: the camera orbits 20 degrees about the sphere over 24 frames; rendered and scored are
+# its first and last frames (scene frames 1 and 2 of the benchmark's plate sequence).
+ORBIT_DEGREES = 20.0
+RENDER_FRAMES = (1, SHOT_FRAMES)
+BOX_VIEW = ((-0.9, -4.4, 1.4), (0.25, -0.2, 0.45), 50.0)
+
+
+def shot_camera(frame, box):
+    """(location, target, lens) of shot frame 1..24: the orbit about the sphere's vertical axis."""
+    location, target, lens = BOX_VIEW if box else CAMERA
+    angle = math.radians(ORBIT_DEGREES) * (frame - 1) / (SHOT_FRAMES - 1)
+    c, s = math.cos(angle), math.sin(angle)
+    x, y, z = location
+    return ((c * x - s * y, s * x + c * y, z), target, lens)
+
+
+def key_shot_camera(scene, box):
+    """Key the camera at scene frames 1, 2, ... to the shot frames RENDER_FRAMES."""
+    from mathutils import Vector
+
+    cam = scene.camera
+    for index, frame in enumerate(RENDER_FRAMES, start=1):
+        location, target, lens = shot_camera(frame, box)
+        cam.location = location
+        cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+        cam.data.lens = lens
+        cam.keyframe_insert("location", frame=index)
+        cam.keyframe_insert("rotation_euler", frame=index)
+    scene.frame_start, scene.frame_end = 1, len(RENDER_FRAMES)
+    scene.frame_set(1)
+
+
+def shot_truths(bpy, hdri_path, name, material, box, folder):
+    """Path-traced truth (sphere there) and plate (sphere absent) of each rendered shot frame,
+    cached; plates as the sequence plate_0001.exr... for setup_plate."""
+    folder.mkdir(parents=True, exist_ok=True)
+    truths, plates = [], []
+    plate_dir = folder / ("plates_box" if box else "plates")
+    for index, frame in enumerate(RENDER_FRAMES, start=1):
+        for kind, with_sphere in (("truth", True), ("plate", False)):
+            path = (folder / f"truth_{name.replace(' + ', '_')}_{index:04d}.exr" if with_sphere
+                    else plate_dir / f"plate_{index:04d}.exr")
+            if not path.exists():
+                path.parent.mkdir(parents=True, exist_ok=True)
+                scene, _floor, sphere = build(bpy, hdri_path, material, shot_camera(frame, box),
+                                              BOX if box else None)
+                scene.cycles.samples = TRUTH_SAMPLES
+                scene.cycles.use_denoising = False
+                scene.cycles.blur_glossy = 0.0        # Filter Glossy 0: Cycles' 1.0 biases mirrors
+                set_device(scene)
+                sphere.hide_render = not with_sphere
+                render(bpy, scene, path)
+            (truths if with_sphere else plates).append(read_exr(path))
+    return truths, plates, plate_dir / "plate_0001.exr"
+
+
+def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, out_dir):
+    """Set up the route once (the bake serves the shot), then render the shot's frames in one
+    session with persistent data. Returns (images, bake_s, setup_s, [seconds per frame])."""
+    scene, floor, sphere = build(bpy, hdri_path, material, shot_camera(1, box), BOX if box else None)
+    key_shot_camera(scene, box)
+    scene.render.use_persistent_data = True
+    set_device(scene)
+    floor.platelight.phantom = True
+    if box:
+        scene.objects["Box"].platelight.phantom = True
+    out_dir.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    bake_s = 0.0
+    if route.startswith("sbrdf"):
+        bake_s = sbrdf_sphere(bpy, scene, sphere, out_dir / "frame", paper=route == "sbrdf_paper")
+    assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(samples=samples, denoise_shadows=True,
+                                              **SETUP[route]) == {"FINISHED"}
+    setup_s = time.perf_counter() - t0 - bake_s
+    images, seconds = [], []
+    for index in range(1, len(RENDER_FRAMES) + 1):
+        scene.frame_set(index)
+        image, took = render(bpy, scene, out_dir / f"frame_{index:04d}.exr")
+        images.append(image)
+        seconds.append(took)
+    return images, bake_s, setup_s, seconds
+
+
+DEVICE = os.environ.get("PLATELIGHT_BENCH_DEVICE", "CPU")
+
+
+def use_gpu(bpy) -> str | None:
+    """Switch Cycles to the first GPU backend with a device; its name, or None without one."""
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    for backend in ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"):
+        try:
+            prefs.compute_device_type = backend
+        except TypeError:
+            continue
+        prefs.get_devices()
+        gpus = [d for d in prefs.devices if d.type == backend]
+        if gpus:
+            for d in prefs.devices:
+                d.use = d.type == backend
+            return backend
+    return None
+
+
+def set_device(scene):
+    scene.cycles.device = "GPU" if DEVICE == "GPU" else "CPU"
+
+
+def pooled_psnr(images, truths, masks_, peak):
+    err = np.concatenate([((np.clip(a, 0, peak) - np.clip(b, 0, peak))[m] ** 2).ravel()
+                          for a, b, m in zip(images, truths, masks_)])
+    return float(10 * np.log10(peak ** 2 / max(float(err.mean()), 1e-20)))
+
+
 def main(out_dir: pathlib.Path) -> None:
+    global W, H
+    W, H = (int(v) for v in SIZE.split("x"))
     bpy = conftest._import_bpy_with_extension()
+    if DEVICE == "GPU" and use_gpu(bpy) is None:
+        raise SystemExit("make bench-gpu: Cycles finds no GPU on this machine (OptiX, CUDA, HIP, "
+                         "oneAPI, Metal); run `make bench` for the CPU benchmark.")
     hdri_path = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{HDRI}.exr")
+    folder = CACHE / (SIZE if DEVICE == "CPU" else f"{SIZE}_{DEVICE.lower()}")
+    only = os.environ.get("PLATELIGHT_BENCH_SCENES")
     rows = []
-    for name, material in MATERIALS.items():
-        truth, plate, plate_path, ref_times = truth_and_plate(bpy, hdri_path, name, material)
-        build(bpy, hdri_path, material)  # for the camera used by the masks
-        obj, shadow = masks(truth, plate)
-        peak = float(np.percentile(truth, 99.5))
-        for route, sample_counts in ROUTES:
+    for name, (material_name, box) in SHOT_SCENES.items():
+        if only and name not in only.split(","):
+            continue
+        material = MATERIALS[material_name]
+        truths, plates, plate_path = shot_truths(bpy, hdri_path, name, material, box, folder)
+        obj_masks, shadow_masks = [], []
+        for index, frame in enumerate(RENDER_FRAMES):
+            build(bpy, hdri_path, material, shot_camera(frame, box), BOX if box else None)
+            obj, shadow = masks(truths[index], plates[index])
+            obj_masks.append(obj)
+            shadow_masks.append(shadow)
+        peak = float(np.percentile(np.concatenate([t.ravel() for t in truths]), 99.5))
+        everything = [np.ones_like(m) for m in obj_masks]
+        for route, key, sample_counts in SHOT_ROUTES:
             for samples in sample_counts:
-                key = ROUTE_KEYS[route]
-                image, bake_s, frame_s = composite(bpy, hdri_path, material, plate_path, key, samples,
-                                                   CACHE / f"comp_{name}_{key}_{samples}.exr")
-                rows.append(dict(material=name, route=route, samples=samples,
-                                 seconds=bake_s + frame_s, bake_s=bake_s,
-                                 shot_s=bake_s / SHOT_FRAMES + frame_s,
-                                 psnr_object=psnr(image, truth, obj, peak),
-                                 psnr_shadow=psnr(image, truth, shadow, peak),
-                                 psnr_all=psnr(image, truth, np.ones_like(obj), peak),
-                                 shadow_px=int(shadow.sum()), object_px=int(obj.sum())))
+                tag = f"{name.replace(' + ', '_')}_{key}_{samples}"
+                images, bake_s, setup_s, seconds = composite_shot(
+                    bpy, hdri_path, material, box, key, samples, plate_path, folder / tag)
+                warm = seconds[-1]
+                rows.append(dict(material=name, route=route, samples=samples, bake_s=bake_s,
+                                 setup_s=setup_s, first_s=seconds[0], warm_s=warm,
+                                 shot_s=(bake_s + setup_s + seconds[0] + (SHOT_FRAMES - 1) * warm) / SHOT_FRAMES,
+                                 psnr_object=pooled_psnr(images, truths, obj_masks, peak),
+                                 psnr_shadow=pooled_psnr(images, truths, shadow_masks, peak),
+                                 psnr_all=pooled_psnr(images, truths, everything, peak),
+                                 object_px=int(obj_masks[0].sum()), shadow_px=int(shadow_masks[0].sum())))
                 print(rows[-1], flush=True)
-    (CACHE / "rows.json").write_text(json.dumps(rows, indent=1))   # to redo the report alone
-    write_report(out_dir, rows)
+                (folder / "rows.json").write_text(json.dumps(rows, indent=1))
+        write_report(out_dir, rows)          # after each scene: a long run reports what it has
 
 
 def equal_time_and_error(rows, material, route, key):
@@ -312,7 +436,7 @@ def equal_time_and_error(rows, material, route, key):
     time; before its fastest point its fastest point is used, which favours the catcher), and the
     largest speed-up at equal error (the catcher's time to reach this route's PSNR, interpolated;
     None where the catcher never gets that good within its sample counts)."""
-    ref = sorted((r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == REFERENCE_ROUTE)
+    ref = sorted((r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == SHOT_REFERENCE)
     ours = [(r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == route]
     if not ref or not ours:
         return None, None
@@ -328,6 +452,9 @@ def equal_time_and_error(rows, material, route, key):
     return max(gains), (max(speedups) if speedups else None)
 
 
+LOAD_NOTE = os.environ.get("PLATELIGHT_BENCH_LOAD_NOTE", "")
+
+
 def write_report(out_dir, rows):
     import matplotlib
 
@@ -335,76 +462,90 @@ def write_report(out_dir, rows):
     import matplotlib.pyplot as plt
 
     out_dir.mkdir(parents=True, exist_ok=True)
+    stem = "composite" if SIZE == "480x270" else f"composite_{SIZE}"
+    if DEVICE != "CPU":
+        stem += f"_{DEVICE.lower()}"
     lines = [
-        "# Compositing benchmark (issue 6)",
+        f"# Compositing benchmark at {SIZE.replace('x', '×')} (issue 11)",
         "",
-        f"Sphere on a grey floor under the bundled `{HDRI}` HDRI, {W}×{H}. Truth: Cycles path-traced with "
-        f"the sphere present, {TRUTH_SAMPLES} spp (no denoiser); plate: the same without the sphere. "
-        "Composites onto that plate with the floor as a phantom (shadow catcher), OIDN on the CG and "
-        "the shadow pass. *platelight lamps*: floor and CG lit by the probe's lamps (sun + 16 "
-        "median-cut, `lights_from_probe(mode='LIGHTS')`), the world only in reflections; "
-        "*platelight sun+sky*: the probe's sun moved into a sharp sun lamp, the world shows the "
-        "sun-less probe (`lights_from_probe(mode='SUN_SKY')`); *cycles catcher*: the world "
-        "(with its sun) lights everything and the CG is path-traced Principled. *platelight sbrdf*: "
-        "the CG is the PlateLight SBRDF (the Principled settings converted by `apply_sbrdf`) shaded "
-        f"from its own probe (`bake_probes`, default 128×64 probe, {PROBE_SAMPLES} spp, the world's full "
-        "importance map, the owner casting its shadows in its probe, Paper Falloff 0); *platelight sbrdf (paper)*: "
-        "the same with the paper's model as written (cosine falloff g', diffuse and specular added "
-        "in full, the owner hidden in its probe). The floor's shadow in both SBRDF routes is the "
-        "catcher's, as in *cycles catcher*. PSNR (dB, peak = the truth's 99.5th percentile) over the "
-        "sphere, over the truth's shadow on the floor (>3 % darker than the plate), and over the frame.",
+        f"A sphere on a grey floor under the bundled `{HDRI}` HDRI, as diffuse, mirror, glossy copper, "
+        "glossy anisotropic metal, and a mirror sphere beside a red phantom box (a nearby real thing). "
+        f"The shot: {SHOT_FRAMES} frames, the camera orbiting {ORBIT_DEGREES:.0f}° about the sphere; its "
+        f"frames {RENDER_FRAMES[0]} and {RENDER_FRAMES[-1]} are rendered and scored (pooled). Truth: Cycles "
+        f"path-traced with the sphere there, {TRUTH_SAMPLES} spp, no denoiser, Filter Glossy 0; plate: the "
+        "same without the sphere. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
+        "over its shadow on the floor (truth > 3 % darker than the plate) and over the frame.",
         "",
-        "Times, on this 2-core machine (comparable within one run only): *bake* is the probe bake; "
-        "*1 frame* is bake + lights + set-up + render + composite of a single frame; *per frame "
-        f"(shot)* is the cost per frame of a {SHOT_FRAMES}-frame shot with a moving camera and "
-        "static objects, where one bake serves every frame (probes do not depend on the view). "
-        "Produced by `tests/bench/bench_composite.py` (`make bench`).",
+        "Routes. *catcher*: what Blender users do today, as Cycles documents it: Principled sphere, "
+        "the floor (and box) as shadow catchers, the plate times the Shadow Catcher pass, then the CG "
+        "over it, OIDN on the CG and the catcher pass (PlateLight's compositor group does exactly "
+        "this). *platelight*: `setup_composite`'s defaults with the sphere converted to the "
+        f"PlateLight SBRDF and shaded from its own probe (one {PROBE_SAMPLES}-spp bake serves the "
+        "shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
+        "specular look-ups; shadow pass denoised. *platelight layered*: the CG in its own layer at "
+        "4 spp, the shadows in a catcher layer at the listed samples. *platelight eevee*: "
+        "`setup_composite(engine='EEVEE')`, Debevec's three layers rasterised (software GL here), "
+        "listed samples = TAA samples. *platelight (paper)*: the paper's model as written (cosine "
+        "falloff, diffuse and specular added in full, owner hidden in its probe, the emission "
+        "lighting the phantoms), still with parallax.",
         "",
-        "| material | route | spp | bake (s) | 1 frame (s) | per frame, shot (s) | PSNR object | PSNR shadow | PSNR frame |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        "Times (s): *bake* the probe bake, *setup* plate + composite set-up, *first* the first "
+        "frame's render (scene sync, shader compilation), *warm* a later frame (persistent data), "
+        f"*per frame* = (bake + setup + first + {SHOT_FRAMES - 1} × warm) / {SHOT_FRAMES}. "
+        "Produced by `tests/bench/bench_composite.py` (`make bench`; "
+        "`PLATELIGHT_BENCH_SIZE=960x540` for `make bench-960`).",
     ]
+    if LOAD_NOTE:
+        lines += ["", "**Measured under load.** " + LOAD_NOTE]
+    lines += ["", "| scene | route | spp | bake | setup | first | warm | per frame | PSNR object | PSNR shadow | PSNR frame |",
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r['material']} | {r['route']} | {r['samples']} | {r['bake_s']:.2f} | "
-                     f"{r['seconds']:.2f} | {r['shot_s']:.2f} | "
+        lines.append(f"| {r['material']} | {r['route']} | {r['samples']} | {r['bake_s']:.1f} | "
+                     f"{r['setup_s']:.1f} | {r['first_s']:.1f} | {r['warm_s']:.1f} | {r['shot_s']:.1f} | "
                      f"{r['psnr_object']:.1f} | {r['psnr_shadow']:.1f} | {r['psnr_all']:.1f} |")
     if rows:
-        lines += ["", f"Mask sizes: object {rows[0]['object_px']} px, shadow {rows[0]['shadow_px']} px "
-                  "(first material)."]
+        lines += ["", f"Mask sizes (frame 1 of the first scene): object {rows[0]['object_px']} px, "
+                  f"shadow {rows[0]['shadow_px']} px."]
     lines += ["", "## Against Cycles' shadow catcher (the issue's goal)", "",
-              "Per material and route: the most PSNR gained over the catcher at equal per-frame "
-              "(shot) time, and the largest speed-up at equal PSNR (— where the catcher is never "
-              "that good within its sample counts). Goal: more accurate at equal time, or ≥ 10× "
-              "faster at equal error.", "",
-              "| material | route | gain at equal time, object (dB) | frame (dB) | speed-up at equal error, object | frame |",
-              "|---|---|---:|---:|---:|---:|"]
-    for material in MATERIALS:
-        for route in ROUTE_KEYS:
-            if route == REFERENCE_ROUTE:
+              "Per scene and route: the most dB gained over the catcher at equal time per frame "
+              "(its PSNR interpolated in log time; before its fastest point, its fastest point), "
+              "and the largest speed-up at equal PSNR (— where the catcher is never that good "
+              "within 256 spp). Goal: ≥ 10× faster at equal error on object and shadow, mirror "
+              "≥ 40 dB and glossy ≥ 38 dB object PSNR.", "",
+              "| scene | route | gain object | gain shadow | gain frame | speed-up object | speed-up shadow | speed-up frame |",
+              "|---|---|---:|---:|---:|---:|---:|---:|"]
+    scenes = list(dict.fromkeys(r["material"] for r in rows))
+    routes = list(dict.fromkeys(r["route"] for r in rows))
+    fmt = (lambda x: "—" if x is None else f"{x:.2f}×")
+    for scene_name in scenes:
+        for route in routes:
+            if route == SHOT_REFERENCE:
                 continue
-            g_obj, s_obj = equal_time_and_error(rows, material, route, "psnr_object")
-            g_all, s_all = equal_time_and_error(rows, material, route, "psnr_all")
-            if g_obj is None:
+            cells = [equal_time_and_error(rows, scene_name, route, key)
+                     for key in ("psnr_object", "psnr_shadow", "psnr_all")]
+            if cells[0][0] is None:
                 continue
-            fmt = (lambda x: "—" if x is None else f"{x:.2f}×")
-            lines.append(f"| {material} | {route} | {g_obj:+.1f} | {g_all:+.1f} | {fmt(s_obj)} | {fmt(s_all)} |")
-    (out_dir / "composite.md").write_text("\n".join(lines) + "\n")
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
-    for ax, key, title in ((axes[0], "psnr_object", "object"), (axes[1], "psnr_shadow", "shadowed floor"),
+            lines.append(f"| {scene_name} | {route} | " + " | ".join(f"{g:+.1f}" for g, _ in cells)
+                         + " | " + " | ".join(fmt(sp) for _, sp in cells) + " |")
+    (out_dir / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
+    colours = dict(zip(routes, ("tab:red", "tab:orange", "tab:green", "tab:purple", "tab:blue")))
+    for ax, key, title in ((axes[0], "psnr_object", "object"), (axes[1], "psnr_shadow", "shadow"),
                            (axes[2], "psnr_all", "frame")):
-        for material, marker in zip(MATERIALS, "osD"):
-            for route, colour in zip(ROUTE_KEYS, ("tab:red", "tab:purple", "tab:orange", "tab:green", "tab:blue")):
-                pts = [(r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == route]
+        for scene_name, marker in zip(scenes, "osD^v"):
+            for route in routes:
+                pts = sorted((r["shot_s"], r[key]) for r in rows if r["material"] == scene_name and r["route"] == route)
                 if pts:
                     xs, ys = zip(*pts)
-                    ax.plot(xs, ys, marker=marker, color=colour, label=f"{route}, {material}")
+                    ax.plot(xs, ys, marker=marker, color=colours[route], label=f"{route}, {scene_name}")
         ax.set_xscale("log")
-        ax.set_xlabel(f"time per frame of a {SHOT_FRAMES}-frame shot (s)")
+        ax.set_xlabel(f"seconds per frame of the {SHOT_FRAMES}-frame shot")
         ax.set_ylabel("PSNR vs path-traced truth (dB)")
-        ax.set_title(title)
+        ax.set_title(f"{title}, {SIZE}")
         ax.grid(True, alpha=0.3)
-    axes[2].legend(fontsize=6)
+    axes[2].legend(fontsize=5.5, ncol=2)
     fig.tight_layout()
-    fig.savefig(out_dir / "composite.png", dpi=110)
+    fig.savefig(out_dir / f"{stem}.png", dpi=110)
 
 
 if __name__ == "__main__":

@@ -212,6 +212,9 @@ def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     render.image_settings.color_depth = "32"
     scene.platelight.probe_height = 32             # 64 x 32 probe renders: tiny, 2 shared cores
     scene.platelight.probe_samples = 4
+    # these tests check the render against the paper's look-ups from the probe centre (the numpy
+    # reference above); parallax-corrected look-ups have their own test (test_parallax.py)
+    scene.platelight.probe_parallax = False
     scene.frame_set(1)
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
     return scene, sphere, cube, plane
@@ -315,7 +318,8 @@ def test_frame_range_bake_binds_the_sequence(bpy_clean, tmp_path, studio_hdris):
     folder = bpy.path.abspath(sphere.platelight.probe_dir)
     files = sorted(f for f in os.listdir(folder) if f.endswith(".exr"))
     # Marble (n = 0.7 with Fresnel) reads diffuse, glossy2 and specular: only those, per frame.
-    assert files == [f"{name}_{frame:04d}.exr" for name in ("diffuse", "glossy2", "specular")
+    # (and the distance map of its parallax-corrected look-ups)
+    assert files == [f"{name}_{frame:04d}.exr" for name in ("diffuse", "distance", "glossy2", "specular")
                      for frame in (1, 2)]
     assert scene.frame_current == 1
 
@@ -382,10 +386,10 @@ def test_rerun_does_not_duplicate_and_bad_input_changes_nothing(bpy_clean, tmp_p
     assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
     folder = bpy.path.abspath(sphere.platelight.probe_dir)
     assert sorted(f for f in os.listdir(folder) if f.endswith(".exr")) == [
-        "diffuse.exr", "glossy2.exr", "specular.exr"]
+        "diffuse.exr", "distance.exr", "glossy2.exr", "specular.exr"]
     probe = sphere.active_material.node_tree.nodes["PlateLight Probe"].node_tree
     bound = sorted({n.image.name for n in probe.nodes if getattr(n, "image", None) is not None})
-    assert bound == ["diffuse.exr", "glossy2.exr", "specular.exr"]
+    assert bound == ["diffuse.exr", "distance.exr", "glossy2.exr", "specular.exr"]
     capfd.readouterr()
     assert bpy.ops.platelight.apply_sbrdf(preset="marble") == {"FINISHED"}
     assert "bake the probes again" not in capfd.readouterr().out

@@ -52,7 +52,8 @@ def test_apply_sbrdf_converts_principled_and_binds_probe(bpy_clean, tmp_path):
     assert params.glossiness == pytest.approx(1.0)
     assert params.emission_strength == pytest.approx(2.0)
     probe = sm.probe_node(mat).node_tree
-    envs = [n for n in probe.nodes if n.bl_idname == "ShaderNodeTexEnvironment"]
+    envs = [n for n in probe.nodes if n.bl_idname == "ShaderNodeTexEnvironment"
+            and n.get("platelight_map") != "distance"]           # the parallax search has its own
     assert len(envs) == 17 and all(n.image is not None for n in envs)
     assert {n.image.name for n in envs} == {f"{m}.exr" for m in sc.MAP_HEIGHTS}
     assert all(n.interpolation == "Linear" for n in envs)
@@ -90,7 +91,7 @@ def test_missing_maps_fall_back_to_world_maps(bpy_clean, tmp_path):
     assert "using the world maps" in status
     assert mat["platelight_probe_dir"] == folder
     envs = [n for n in sm.probe_node(mat).node_tree.nodes
-            if n.bl_idname == "ShaderNodeTexEnvironment"]
+            if n.bl_idname == "ShaderNodeTexEnvironment" and n.get("platelight_map") != "distance"]
     assert all(n.image is not None and "_world" in n.image.filepath for n in envs)
     # Once the object's own maps exist, a refresh/apply binds them.
     sc.write_maps(tmp_path / "not_baked", sc.synthetic_maps())
@@ -108,7 +109,7 @@ def test_image_sequence_maps(bpy_clean, tmp_path):
     sm = _sm()
     mat = sm.apply_sbrdf_material(ob)
     envs = [n for n in sm.probe_node(mat).node_tree.nodes
-            if n.bl_idname == "ShaderNodeTexEnvironment"]
+            if n.bl_idname == "ShaderNodeTexEnvironment" and n.get("platelight_map") != "distance"]
     assert all(n.image.source == "SEQUENCE" for n in envs)
     # frame F reads <map>_F.exr, independent of which frames existed when the material was bound
     assert all(n.image_user.frame_start == 1 and n.image_user.frame_offset == 0
