@@ -18,6 +18,7 @@ SUBCOMMANDS = {
     "probe": ".capture.cli_probe",
     "bake": ".bake.cli_bake",
     "render": ".cli_render",
+    "farm-job": ".farm.cli_farm_job",
 }
 
 

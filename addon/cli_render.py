@@ -17,11 +17,11 @@ from __future__ import annotations
 import glob
 import os
 import sys
-import time
 
 from .errors import PlateLightError
 
-FORMATS = {"exr": ("OPEN_EXR", ".exr"), "png": ("PNG", ".png")}
+FORMATS = {"exr": ("OPEN_EXR", ".exr"), "png": ("PNG", ".png"),
+           "multilayer": ("OPEN_EXR", ".exr")}   # composite + named passes (addon/farm/multilayer.py)
 PARTIAL = ".partial-"
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
@@ -41,9 +41,12 @@ def add_parser(sub):
                         "the frames (one per machine)")
     parser.add_argument("--name", default="composite", help="file name prefix (default: composite)")
     parser.add_argument("--format", choices=sorted(FORMATS), default="exr",
-                        help="exr: float32 RGBA OpenEXR (default); png: 8-bit RGBA")
+                        help="exr: float32 RGBA OpenEXR (default); png: 8-bit RGBA; multilayer: the "
+                        "composite and named passes (CG, Shadows, Holdout, Depth, Normal, Cryptomatte)")
     parser.add_argument("--samples", type=int, help="Cycles samples per pixel (default: the scene's)")
     parser.add_argument("--force", action="store_true", help="render frames that are already complete too")
+    parser.add_argument("--quiet", action="store_true", help="farm logs: drop Blender's own render log "
+                        "(Cycles' 'Saved:' lines); keep PlateLight's progress lines")
     parser.set_defaults(func=run)
 
 
@@ -177,17 +180,27 @@ def run(args):
     for frame in broken:
         print(f"platelight render: warning: {os.path.basename(frame_path(folder, args.name, frame, ext))} "
               "is incomplete (an interrupted earlier render); rendering it again.", file=sys.stderr)
-    for done, frame in enumerate(to_render, 1):
+    from .farm.progress import Progress, blender_output
+
+    passes = None
+    if args.format == "multilayer":
+        import importlib
+
+        passes = importlib.import_module(__package__.rsplit(".addon", 1)[0] + ".node_groups.passes")
+        passes = passes.MultilayerPasses(scene)
+    progress = Progress("render", len(to_render))
+    for frame in to_render:
         final = frame_path(folder, args.name, frame, ext)
         for old in stale_temps(final):
             os.unlink(old)
         tmp = temp_path(final)
-        t0 = time.perf_counter()
         try:
-            with _stdout_to_stderr():
+            with blender_output(args.quiet):
                 scene.frame_set(frame)
                 render.filepath = tmp
                 bpy.ops.render.render(write_still=True)
+            if passes is not None:
+                passes.join(frame, tmp)
             commit(tmp, final)
         except RuntimeError as exc:
             raise PlateLightError(f"Blender could not render frame {frame}: "
@@ -197,8 +210,9 @@ def run(args):
         finally:
             if os.path.exists(tmp):
                 os.unlink(tmp)
-        print(f"platelight render: frame {frame} ({done}/{len(to_render)}) "
-              f"{time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+        progress.step(f"frame {frame}")
+    if passes is not None:
+        passes.close()
     summary = f"PlateLight: rendered {len(to_render)} frame(s)"
     if kept:
         summary += f", kept {len(kept)} complete"
