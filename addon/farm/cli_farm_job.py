@@ -31,9 +31,10 @@ def add_parser(sub):
 
 
 def run(args):
-    from ..bake.cli_bake import _check_blend, _import_bpy, _stdout_to_stderr
+    from ..bake.cli_bake import _check_blend, _import_bpy
     from ..bake.frames import parse_frames
     from ..fileio import ensure_writable_folder
+    from .progress import blender_output
 
     if args.chunk < 1:
         raise PlateLightError(f"--chunk must be at least 1 frame, not {args.chunk}.")
@@ -49,14 +50,14 @@ def run(args):
     bpy = _import_bpy()
     root = __package__.rsplit(".addon", 1)[0]
     try:
-        with _stdout_to_stderr():
+        with blender_output(quiet=True):      # Blender's log says nothing a job export needs
             bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
     except RuntimeError as exc:
         raise PlateLightError(f"Blender cannot open {blend}: {str(exc).strip().splitlines()[-1]}") from None
     if not hasattr(bpy.types.Scene, "platelight"):
         importlib.import_module(root).register()
     farm_job = importlib.import_module(f"{root}.operators.farm_job")
-    with _stdout_to_stderr():
+    with blender_output(quiet=True):
         job = farm_job.export_farm_job(bpy.context, args.out, frames, chunk=args.chunk, fmt=args.format,
                                        prefix=args.name, python=args.python)
     folder = os.path.abspath(args.out)
