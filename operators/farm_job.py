@@ -125,8 +125,10 @@ def check_job_folder(folder):
     return folder
 
 
-def export_farm_job(context, folder, frames, chunk=1, fmt="exr", prefix="composite", python=None):
-    """Write the bundle of the current (saved) scene into ``folder``; returns the FarmJob."""
+def export_farm_job(context, folder, frames, chunk=1, fmt="exr", prefix="composite", python=None,
+                    progress=None):
+    """Write the bundle of the current (saved) scene into ``folder``; returns the FarmJob.
+    ``progress(done, total)`` is called as the scene's files are linked or copied."""
     scene = context.scene
     blend = bpy.data.filepath
     if not blend:
@@ -150,7 +152,9 @@ def export_farm_job(context, folder, frames, chunk=1, fmt="exr", prefix="composi
     externals = {}
     restore = []
     try:
-        for block, attr, path, sources in files:
+        for index, (block, attr, path, sources) in enumerate(files):
+            if progress:
+                progress(index, len(files))
             place = _bundle_place(path, blend_dir, scene_dir, externals)
             for src in sources:
                 _link_or_copy(src, os.path.join(os.path.dirname(place), os.path.basename(src)))
@@ -225,12 +229,17 @@ class PLATELIGHT_OT_export_farm_job(bpy.types.Operator):
         if not self.directory:
             self.report({"ERROR"}, "Choose a Job Folder for the farm job.")
             return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, 1)
         try:
             job = export_farm_job(context, bpy.path.abspath(self.directory), list(range(start, end + 1)),
-                                  chunk=self.chunk, fmt=self.format)
+                                  chunk=self.chunk, fmt=self.format,
+                                  progress=lambda done, total: wm.progress_update(done / max(total, 1)))
         except PlateLightError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
+        finally:
+            wm.progress_end()
         tasks = len(jobs.chunks(job.frames, job.chunk))
         self.report({"INFO"}, f"Farm job written to {self.directory}: "
                     f"{'a bake task and ' if job.bake else ''}{tasks} render task(s).")
