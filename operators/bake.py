@@ -21,6 +21,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
+from ..addon import names
 from ..addon.bake import culling, layout
 from ..addon.bake.hashing import content_hash
 from .probe_inputs import (GEOMETRY_TYPES, Describer, environment_exr, maps_for, point_inside,
@@ -31,7 +32,6 @@ from ..addon.exr_io import read_exr
 from ..addon.ibl.maps import (DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, map_filename,
                               write_maps)
 
-PROBE_CAMERA = "PlateLight Probe Camera"
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
@@ -238,12 +238,12 @@ class ProbeBake:
         scene, state = self.scene, self._state
         self._render_results = {im.name for im in bpy.data.images if im.type == "RENDER_RESULT"}
         self._tmpdir = tempfile.mkdtemp(prefix="platelight-probe-")
-        cam_data = bpy.data.cameras.new(PROBE_CAMERA)
+        cam_data = bpy.data.cameras.new(names.PROBE_CAMERA)
         cam_data.type = "PANO"
         cam_data.panorama_type = "EQUIRECTANGULAR"
         cam_data.clip_start = PROBE_CLIP_START
         cam_data.clip_end = scene.platelight.probe_distance
-        self._camera = bpy.data.objects.new(PROBE_CAMERA, cam_data)
+        self._camera = bpy.data.objects.new(names.PROBE_CAMERA, cam_data)
         self._camera.rotation_euler = PANO_ROTATION
         scene.collection.objects.link(self._camera)
         height = scene.platelight.probe_height
@@ -425,8 +425,8 @@ class ProbeBake:
     def _pack(self, folder_rel, frame, maps, refresh):
         for name in maps:
             filename = map_filename(name, frame)
-            pack_map(folder_rel + filename, f"PlateLight {folder_rel.rstrip('/').rsplit('/', 1)[-1]}/{filename}",
-                     refresh)
+            label = f"{names.PACKED_MAP_PREFIX}{folder_rel.rstrip('/').rsplit('/', 1)[-1]}/{filename}"
+            pack_map(folder_rel + filename, label, refresh)
 
     def world_folder(self):
         return self.folder_for(layout.WORLD_FOLDER)

@@ -9,11 +9,11 @@ import os
 import bpy
 import numpy as np
 
+from ..addon import names
 from ..addon.bake import culling, needs
 from ..addon.bake.hashing import content_hash
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
-SBRDF_GROUP = "PlateLight SBRDF"
 
 
 # --------------------------------------------------------------------------- describing inputs
@@ -207,7 +207,7 @@ def lobes_of_material(mat) -> needs.Lobes:
     nodes = mat.node_tree.nodes
     for node in nodes:
         tree = getattr(node, "node_tree", None)
-        if node.bl_idname == "ShaderNodeGroup" and tree is not None and tree.name.startswith(SBRDF_GROUP):
+        if node.bl_idname == "ShaderNodeGroup" and tree is not None and tree.name.startswith(names.SBRDF_GROUP):
             return needs.Lobes(diffuse=_nonzero(node, "Diffuse Albedo"),
                                specular=_nonzero(node, "Specular Albedo"),
                                glossiness=_scalar(node, "Glossiness"),

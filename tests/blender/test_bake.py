@@ -255,7 +255,7 @@ def test_panels_draw_and_menus_list_the_operator(bpy_clean, tmp_path):
     ob = add_sphere(bpy, "Sphere", (0, 0, 0))
     module = bake_module()
     assert module.menu_entry in bpy.types.VIEW3D_MT_object._dyn_ui_initialize()
-    panels = __import__(module.__package__.rsplit(".", 1)[0] + ".addon.ui.panels", fromlist=["x"])
+    panels = __import__(module.__package__.rsplit(".", 1)[0] + ".ui.panels", fromlist=["x"])
 
     class Recorder:
         """Stands in for UILayout, which only Blender's window code can create."""
