@@ -80,7 +80,9 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             card = _numbers(self.grey_card, "grey card box", 4) if self.grey_card.strip() else None
             align, intrinsics = None, None
             if self.align_marker_size > 0:
-                from ..addon.capture.tracking import Intrinsics, MarkerTarget, read_image
+                from ..addon.capture.intrinsics import Intrinsics
+                from ..addon.capture.targets import MarkerTarget
+                from ..addon.footage import read_image
 
                 align = MarkerTarget("DICT_4X4_50", self.align_marker_size)
                 if os.path.isfile(paths[0]):

@@ -41,8 +41,8 @@ def plate_frame_pixels(image, scene):
     """The plate's pixels at the scene's current frame as float32 linear RGB (numpy)."""
     import cv2
 
-    from ..addon.capture.tracking import read_image
     from ..addon.compositing.grain import linear_plate
+    from ..addon.footage import read_image
     from ..addon.errors import PlateLightError
 
     path = bpy.path.abspath(image.filepath, library=image.library)

@@ -68,7 +68,9 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
                           default=0.0, min=0.0, soft_max=10.0)
 
     def execute(self, context):
-        from ..addon.capture.tracking import CharucoTarget, MarkerTarget, load_calibration, track
+        from ..addon.capture.intrinsics import load_calibration
+        from ..addon.capture.targets import CharucoTarget, MarkerTarget
+        from ..addon.capture.tracking import track
         from ..addon.errors import PlateLightError
 
         scene = context.scene
