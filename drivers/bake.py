@@ -55,7 +55,7 @@ def run(args):
     registered = hasattr(bpy.types.Object, "platelight") and hasattr(bpy.ops.platelight, "bake_probes")
     if not registered:
         package.register()
-    bake = importlib.import_module(f"{root}.operators.bake")
+    bake = importlib.import_module(f"{root}.operators.bake.job")
     context = bpy.context
     scene = context.scene
     if args.samples:

@@ -29,6 +29,13 @@ def set_plate_colour_management(scene):
     scene.sequencer_colorspace_settings.name = "Linear Rec.709"
 
 
+def addon_preferences(context):
+    """PlateLight's add-on preferences (ui/preferences.py), or None when it is not enabled as an
+    add-on (a script that registered the classes itself)."""
+    addon = context.preferences.addons.get(__package__.rsplit(".", 1)[0])
+    return addon.preferences if addon is not None else None
+
+
 class NeedsScene:
     """Operator mixin: available whenever there is a scene (says so when there is none)."""
 

@@ -1,7 +1,6 @@
-"""What a probe depends on, read from the Blender scene (helpers of operators/bake.py; not an
-operator itself, so not in operators._MODULES): plain-data descriptions for the content hash,
-which objects a probe sees, where a probe sits, which maps a material reads, and whether the
-world is just an EXR."""
+"""What a probe depends on, read from the Blender scene (for the bake, job.py): plain-data
+descriptions for the content hash, which objects a probe sees, where a probe sits, which maps a
+material reads, and whether the world is just an EXR."""
 from __future__ import annotations
 
 import os
@@ -9,9 +8,9 @@ import os
 import bpy
 import numpy as np
 
-from ..addon import names
-from ..addon.bake import culling, needs
-from ..addon.bake.hashing import content_hash
+from ...addon import names
+from ...addon.bake import culling, needs
+from ...addon.bake.hashing import content_hash
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 
