@@ -10,10 +10,9 @@ import tempfile
 
 import bpy
 
+from ..addon import names
 from ..addon.errors import PlateLightError
 from ..addon.farm.multilayer import CRYPTO_LEVELS, CRYPTO_NAME, assemble
-
-NODE_NAME = "PlateLight Pass Files"
 # file stem -> (node, output socket) in the PlateLight Composite tree
 _SOURCES = (("CG", "diff", "CG"), ("Shadows", "diff", "Shadows"), ("Depth", "layer", "Depth"),
             ("Normal", "layer", "Normal"),
@@ -23,19 +22,17 @@ PASS_FILES = tuple(stem for stem, _node, _socket in _SOURCES)
 
 def wire_pass_files(scene, directory):
     """Switch on the passes and (re)wire the File Output node to write into ``directory``."""
-    from ..operators.composite import LAYER_CG
-
     tree = scene.compositing_node_group
-    if tree is None or "PlateLight Differential" not in tree.nodes or LAYER_CG not in tree.nodes:
+    if tree is None or names.DIFFERENTIAL_GROUP not in tree.nodes or names.LAYER_CG not in tree.nodes:
         raise RuntimeError("no PlateLight composite")
-    layer = scene.view_layers[LAYER_CG]
+    layer = scene.view_layers[names.LAYER_CG]
     layer.use_pass_z = True
     layer.use_pass_normal = True
     layer.use_pass_cryptomatte_object = True
     layer.pass_cryptomatte_depth = 2 * CRYPTO_LEVELS
-    nodes = {"diff": tree.nodes["PlateLight Differential"], "layer": tree.nodes[LAYER_CG]}
-    node = tree.nodes.get(NODE_NAME) or tree.nodes.new("CompositorNodeOutputFile")
-    node.name = node.label = NODE_NAME
+    nodes = {"diff": tree.nodes[names.DIFFERENTIAL_GROUP], "layer": tree.nodes[names.LAYER_CG]}
+    node = tree.nodes.get(names.PASS_FILES_NODE) or tree.nodes.new("CompositorNodeOutputFile")
+    node.name = node.label = names.PASS_FILES_NODE
     node.location = (400, -600)
     node.directory = directory
     node.file_name = ""
@@ -54,9 +51,7 @@ def wire_pass_files(scene, directory):
 def phantom_names(scene):
     """Names of the objects that stand in for real things (their coverage is the holdout matte):
     setup_composite's phantom collection (read without the add-on registered, as the CLI runs)."""
-    from ..operators.composite import PHANTOM_COLLECTION
-
-    coll = bpy.data.collections.get(PHANTOM_COLLECTION)
+    coll = bpy.data.collections.get(names.PHANTOM_COLLECTION)
     return sorted(ob.name for ob in coll.all_objects) if coll is not None else []
 
 

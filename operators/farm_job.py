@@ -20,8 +20,9 @@ from ..addon.bake.layout import DEFAULT_MAPS_DIR
 from ..addon.errors import PlateLightError
 from ..addon.farm import jobs
 from ..addon.fileio import ensure_writable_folder
-from .common import PLATE_FRAME_OFFSET_KEY, find_plate_image
-from .plate import NUMBERED_FILE, sequence_frame_path
+from ..addon.footage import NUMBERED_FILE, sequence_frame_path
+from ..addon.names import PLATE_FRAME_OFFSET_KEY
+from .common import find_plate_image
 
 EXTERNAL = "external"
 

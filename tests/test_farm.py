@@ -76,7 +76,7 @@ def test_template_without_bake_and_bad_jobs():
 
 def test_commands_are_the_cli():
     """The steps run the documented CLI: every flag they pass exists in `python -m platelight`."""
-    from platelight.addon.cli import build_parser
+    from platelight.cli import build_parser
 
     parser = build_parser()
     bake = parser.parse_args(jobs.bake_args("s.blend", "1-4"))

@@ -14,7 +14,7 @@ import pytest
 
 import support
 from platelight.addon.bake.frames import parse_frames
-from platelight.addon.cli import build_parser
+from platelight.cli import build_parser
 from platelight.addon.farm import jobs
 
 SCRIPT = support.REPO / "addon" / "farm" / "flamenco" / "platelight_composite.js"

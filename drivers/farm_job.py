@@ -7,8 +7,12 @@ from __future__ import annotations
 import importlib
 import os
 
-from ..errors import PlateLightError
-from . import jobs
+from ..addon.bake.frames import parse_frames
+from ..addon.errors import PlateLightError
+from ..addon.farm import jobs
+from ..addon.farm.progress import blender_output
+from ..addon.fileio import ensure_writable_folder
+from .headless import check_blend, import_bpy
 
 
 def add_parser(sub):
@@ -31,24 +35,19 @@ def add_parser(sub):
 
 
 def run(args):
-    from ..bake.cli_bake import _check_blend, _import_bpy
-    from ..bake.frames import parse_frames
-    from ..fileio import ensure_writable_folder
-    from .progress import blender_output
-
     if args.chunk < 1:
         raise PlateLightError(f"--chunk must be at least 1 frame, not {args.chunk}.")
     blend = os.path.abspath(args.blend)
     if not os.path.exists(blend):
         raise PlateLightError(f"File not found: {blend} (save the scene there first).")
-    _check_blend(blend)
+    check_blend(blend)
     frames = parse_frames(args.frames)
     if not args.name or os.sep in args.name or args.name.startswith("."):
         raise PlateLightError(f"--name must be a plain file name prefix, not {args.name!r}.")
     ensure_writable_folder(args.out)
 
-    bpy = _import_bpy()
-    root = __package__.rsplit(".addon", 1)[0]
+    bpy = import_bpy()
+    root = __package__.rsplit(".", 1)[0]
     try:
         with blender_output(quiet=True):      # Blender's log says nothing a job export needs
             bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
