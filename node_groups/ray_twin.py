@@ -18,13 +18,14 @@ import dataclasses
 
 import numpy as np
 
+from ..addon import names
 from ..addon.material.principled import PrincipledValues, principled_to_sbrdf, sbrdf_to_principled
 from .principled_nodes import SOCKETS, read_principled
 
-TWIN_NODE = "PlateLight Principled Twin"
-SPLIT_NODE = "PlateLight Ray Split"          # max(Is Camera Ray, Emission For All Rays)
-MIX_NODE = "PlateLight Ray Mix"
-LIGHT_PATH_NODE = "PlateLight Light Path"
+TWIN_NODE = names.TWIN_NODE
+SPLIT_NODE = names.RAY_SPLIT_NODE            # max(Is Camera Ray, Emission For All Rays)
+MIX_NODE = names.RAY_MIX_NODE
+LIGHT_PATH_NODE = names.LIGHT_PATH_NODE
 SOURCE_KEY = "platelight_source_material"     # set by apply_sbrdf on a converted material
 
 

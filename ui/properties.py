@@ -49,7 +49,7 @@ class PlateLightObjectSettings(bpy.types.PropertyGroup):
 
 
 def _parallax_changed(settings, context):
-    from ...node_groups.probe_maps import set_parallax
+    from ..node_groups.probe_maps import set_parallax
 
     set_parallax(settings.probe_parallax)
 

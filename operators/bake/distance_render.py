@@ -1,0 +1,98 @@
+"""The probe's distance map (addon/ibl/distance.py): rendered right after the probe's panorama,
+from the same centre with the same objects hidden.
+
+Blender 5.2 writes no Depth pass into the probe's EXR (checked: even a multilayer EXR held only
+Combined), so the distance is rendered as a colour: one 1-spp render where every surface emits
+Camera Data's View Distance (for a panoramic camera the radial distance from its centre) and the
+world emits FAR, at DISTANCE_SCALE times the probe's size (sharper silhouettes for almost nothing:
+a box's reflection IoU 0.81 at the probe's size, 0.87 at 4x)."""
+from __future__ import annotations
+
+import os
+
+import bpy
+import numpy as np
+
+from ...addon import names
+from ...addon.exr_io import read_exr
+from ...addon.ibl import distance as distance_maps
+
+DISTANCE_SCALE = 4
+
+
+def distance_datablocks():
+    """(material emitting View Distance, world emitting FAR), made on first use; ``remove()``
+    takes them away again at the bake's end."""
+    material = bpy.data.materials.get(names.PROBE_DISTANCE)
+    if material is None:
+        material = bpy.data.materials.new(names.PROBE_DISTANCE)
+        tree = material.node_tree
+        tree.nodes.clear()
+        camera = tree.nodes.new("ShaderNodeCameraData")
+        emit = tree.nodes.new("ShaderNodeEmission")
+        out = tree.nodes.new("ShaderNodeOutputMaterial")
+        tree.links.new(camera.outputs["View Distance"], emit.inputs["Color"])
+        tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
+    world = bpy.data.worlds.get(names.PROBE_DISTANCE)
+    if world is None:
+        world = bpy.data.worlds.new(names.PROBE_DISTANCE)
+        world.use_nodes = True
+        background = world.node_tree.nodes["Background"]
+        background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        background.inputs["Strength"].default_value = distance_maps.FAR
+    return material, world
+
+
+def remove():
+    material = bpy.data.materials.get(names.PROBE_DISTANCE)
+    if material is not None:
+        bpy.data.materials.remove(material)
+    world = bpy.data.worlds.get(names.PROBE_DISTANCE)
+    if world is not None:
+        bpy.data.worlds.remove(world)
+
+
+def render_distance(scene, view_layer, folder, clip_end):
+    """Render the distance panorama with the probe's set-up (camera, hidden objects) as it is now;
+    returns (distance map (H, W) float32, warnings)."""
+    material, world = distance_datablocks()
+    render = scene.render
+    saved = [(scene, "world", scene.world), (view_layer, "material_override", view_layer.material_override),
+             (scene.cycles, "samples", scene.cycles.samples), (render, "filepath", render.filepath),
+             (render, "resolution_x", render.resolution_x), (render, "resolution_y", render.resolution_y)]
+    path = os.path.join(folder, "distance.exr")
+    try:
+        scene.world, view_layer.material_override = world, material
+        scene.cycles.samples = 1
+        render.filepath = path
+        render.resolution_x *= DISTANCE_SCALE
+        render.resolution_y *= DISTANCE_SCALE
+        bpy.ops.render.render(write_still=True)
+    finally:
+        for owner, attr, value in reversed(saved):
+            setattr(owner, attr, value)
+    return distance_maps.distance_map(read_exr(path, "RGB")[..., 0], clip_end)
+
+
+def write_probe_distance(distance, folder, frame, offsets):
+    """Write the distance map next to the probe's maps; returns its warnings (zero-distance
+    texels; an object reaching past what its probe sees)."""
+    dist, warnings = distance
+    sentence = distance_maps.coverage_warning(dist, offsets)
+    distance_maps.write_distance(folder, dist, frame)
+    return warnings + ([sentence] if sentence else [])
+
+
+def surface_points(ob, depsgraph, limit=20000):
+    """World positions of the evaluated mesh's vertices (at most ``limit``; the bounding box's
+    corners for objects without a mesh)."""
+    evaluated = ob.evaluated_get(depsgraph)
+    mesh = getattr(evaluated, "data", None)
+    if ob.type == "MESH" and mesh is not None and len(mesh.vertices):
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
+        mesh.vertices.foreach_get("co", co)
+        co = co.reshape(-1, 3)[:: max(1, len(mesh.vertices) // limit)]
+    else:
+        co = np.array([tuple(c) for c in ob.bound_box], dtype=np.float64)
+    m = np.array(ob.matrix_world, dtype=np.float64)
+    return co @ m[:3, :3].T + m[:3, 3]
