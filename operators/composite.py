@@ -192,6 +192,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         # --- build
         scene.render.engine = engine
         scene.render.film_transparent = True
+        # a shot renders many frames of one scene: sync it once (the probes already serve every
+        # frame of a static shot from one bake)
+        scene.render.use_persistent_data = True
         if self.samples:
             scene.cycles.samples = self.samples
             scene.eevee.taa_render_samples = self.samples
