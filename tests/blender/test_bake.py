@@ -153,16 +153,16 @@ def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
         ob.data.materials.append(mat)
     bake(bpy, all_objects=True, cull=False)
     names = lambda n: sorted(p.name for p in maps_folder(tmp_path, n).glob("*.exr"))
-    assert names("Matte") == ["diffuse.exr"]
-    assert names("Mirror") == ["specular.exr"]
-    assert names("Plain") == ["diffuse.exr", "glossy1.exr", "glossy2.exr", "specular.exr"]
+    assert names("Matte") == ["diffuse.exr"]          # no glossy look-ups: no distance map
+    assert names("Mirror") == ["distance.exr", "specular.exr"]
+    assert names("Plain") == ["diffuse.exr", "distance.exr", "glossy1.exr", "glossy2.exr", "specular.exr"]
     # The mirror turns matte: the next bake computes only the diffuse map and drops the old one.
     node = mirror.data.materials[0].node_tree.nodes["Group"]
     node.inputs["Diffuse Albedo"].default_value = (0.5, 0.5, 0.5, 1)
     node.inputs["Specular Albedo"].default_value = (0, 0, 0, 1)
     node.inputs["Fresnel Falloff"].default_value = 0.0
     bake(bpy, all_objects=True, cull=False)
-    assert names("Mirror") == ["diffuse.exr"]
+    assert names("Mirror") == ["diffuse.exr"]          # its distance map went with the specular
 
 
 def _fake_sbrdf_group(bpy):
