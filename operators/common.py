@@ -1,4 +1,7 @@
 """Small helpers shared by PlateLight's operators (bpy)."""
+import os
+import tempfile
+
 import bpy
 
 PLATE_IMAGE_NAME = "PlateLight Plate"
@@ -17,6 +20,18 @@ def find_plate_image(scene):
             if background.source == "IMAGE" and background.image is not None:
                 return background.image
     return None
+
+
+def output_folder(scene, name):
+    """<maps folder>/<name> (scene.platelight.maps_dir, next to the .blend by default): where
+    PlateLight writes the files it makes for a scene; a temporary folder when the maps folder is
+    relative and the file is unsaved."""
+    maps_dir = scene.platelight.maps_dir
+    if maps_dir and (bpy.data.filepath or not maps_dir.startswith("//")):
+        folder = bpy.path.abspath(maps_dir)
+    else:
+        folder = os.path.join(tempfile.gettempdir(), "platelight")
+    return os.path.join(folder, name)
 
 
 class NeedsScene:

@@ -207,6 +207,9 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     from .grain import wire_grain  # grain matched earlier (platelight.match_grain) stays wired
 
     wire_grain(scene, tree)
+    from .lens import wire_redistortion  # a calibrated lens: the layers land through the plate's lens
+
+    wire_redistortion(scene, tree)
     return tree
 
 

@@ -13,12 +13,11 @@ wires an existing grain image again when it rebuilds the tree.
 """
 import os
 import re
-import tempfile
 
 import bpy
 from bpy.props import IntProperty
 
-from .common import PLATE_FRAME_OFFSET_KEY, NeedsScene, find_plate_image
+from .common import PLATE_FRAME_OFFSET_KEY, NeedsScene, find_plate_image, output_folder
 from .plate import sequence_frame_path
 
 GRAIN_IMAGE = "PlateLight Grain"
@@ -29,14 +28,8 @@ _GRAIN_FILE = re.compile(r"^grain_(\d+)\.exr$")
 
 
 def grain_folder(scene):
-    """<maps folder>/grain (scene.platelight.maps_dir, next to the .blend by default); a temporary
-    folder when the maps folder is relative and the file is unsaved."""
-    maps_dir = scene.platelight.maps_dir
-    if maps_dir and (bpy.data.filepath or not maps_dir.startswith("//")):
-        folder = bpy.path.abspath(maps_dir)
-    else:
-        folder = os.path.join(tempfile.gettempdir(), "platelight")
-    return os.path.join(folder, "grain")
+    """<maps folder>/grain (common.output_folder)."""
+    return output_folder(scene, "grain")
 
 
 def plate_frame_pixels(image, scene):

@@ -176,3 +176,21 @@ def undistort_to_render(image: np.ndarray, fx, fy, cx, cy, dist, frame: RenderFr
     map_x = (fx * xd + cx).astype(np.float32)
     map_y = (fy * yd + cy).astype(np.float32)
     return cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def blender_camera_fields(fx, fy, cx, cy, width, height, sensor_width) -> dict:
+    """A Blender perspective camera (horizontal sensor fit) and render pixel aspect that image
+    like the pinhole (fx, fy, cx, cy) on width x height pixels (OpenCV convention)."""
+    # Non-square pixels (fx != fy): Blender's pixel aspect is width/height of a pixel = fy/fx,
+    # and both of its fields must be >= 1. Calibrations within 0.5 % keep square pixels.
+    ratio = fy / fx
+    if abs(ratio - 1) < 0.005:
+        ratio = 1.0
+    return {
+        "lens": fx * sensor_width / width,
+        # OpenCV's principal point (pixel centres at integers) -> Blender's shift (image widths)
+        "shift_x": -(cx - (width - 1) / 2) / width,
+        "shift_y": (cy - (height - 1) / 2) / width,
+        "pixel_aspect_x": max(ratio, 1.0),
+        "pixel_aspect_y": max(1.0 / ratio, 1.0),
+    }
