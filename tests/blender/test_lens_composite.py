@@ -89,6 +89,10 @@ def test_cg_sits_on_its_marker_in_the_distorted_composite(bpy_clean, tmp_path):
     clip = bpy.data.movieclips["PlateLight Plate"]
     assert clip.tracking.camera.distortion_model == "BROWN"
     assert scene.active_clip == clip
+    background = cam.data.background_images[0].image      # phantoms are placed on this
+    assert background.name == "PlateLight Plate Undistorted"
+    shown = read_exr(bpy.path.abspath(background.filepath))
+    assert shown.shape == (H, W, 3) and shown[H // 2, W // 2, 0] == np.float32(0.25)
     assert bpy.ops.platelight.setup_composite(samples=16) == {"FINISHED"}
     tree = scene.compositing_node_group
     assert sum(n.bl_idname == "CompositorNodeMapUV" for n in tree.nodes) >= 1
