@@ -23,6 +23,7 @@ from bpy.props import BoolProperty, IntProperty
 
 from ..addon.bake import culling, layout
 from ..addon.bake.hashing import content_hash
+from .phantom_surface import apply_phantom_surfaces
 from .probe_inputs import (GEOMETRY_TYPES, Describer, environment_exr, maps_for, point_inside,
                            probe_origin, renderable, visible_in_probe, world_bounds,
                            world_description)
@@ -161,6 +162,8 @@ class ProbeBake:
         root = self.abspath(self.maps_root())
         if not self.check_only:
             layout.check_writable(root)
+            # before any hash: the plate projected onto phantoms (or their own materials)
+            apply_phantom_surfaces(scene, [ob for ob in scene.objects if ob.platelight.phantom])
         self._plan()
 
     def _plan(self):
@@ -294,7 +297,9 @@ class ProbeBake:
                 if getattr(layer_collection, flag):
                     state.set(layer_collection, flag, False)
             stack.extend(layer_collection.children)
-        # Phantoms stand for real things: probes must see them as they are, not as catchers.
+        # Phantoms stand for real things: probes must see them as they are, not as catchers
+        # (with the plate material: the plate, seen by the probe's camera rays too).
+        state.set(scene.platelight, "probe_render", True)
         for ob in scene.objects:
             if ob.platelight.phantom:
                 if ob.is_shadow_catcher:

@@ -22,6 +22,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 from ..node_groups.composite import build_differential_group
 from .common import PLATE_FRAME_OFFSET_KEY, find_plate_image
+from .phantom_surface import apply_phantom_surfaces
 
 TREE_NAME = "PlateLight Composite"
 CG_COLLECTION = "PlateLight CG"
@@ -312,6 +313,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         for ob in phantoms:
             ob.is_shadow_catcher = self.method == "CATCHER"
             ob.is_holdout = False
+        apply_phantom_surfaces(scene, phantoms)   # the plate on the phantoms (or their own materials)
 
         ours = {LAYER_CG} if self.method == "CATCHER" else {LAYER_CG, LAYER_LOCAL, LAYER_WITHOUT}
         for layer in scene.view_layers:
