@@ -55,6 +55,8 @@ def file_encoding(path: str | os.PathLike) -> PlateEncoding:
         return _tiff(path, head[:2] == b"II")
     if head[:4] == b"\x76\x2f\x31\x01":
         return _exr(head)
+    if head.startswith(b"\xff\xd8"):
+        return PlateEncoding(SRGB, "JPEG, sRGB-encoded")
     if head[:4] in (b"SDPX", b"XPDS"):
         transfer = head[801] if len(head) > 801 else 0
         name, why = _DPX_TRANSFER.get(transfer, (None, f"DPX transfer code {transfer}, left to Blender"))
