@@ -80,7 +80,7 @@ def _write_like(path, image):
         raise PlateLightError(f"Cannot write the undistorted plate frame {path}.")
 
 
-def _undistorted_plate(scene, plate, calib, frame, folder):
+def _undistorted_plate(scene, plate, calib, frame, folder, progress=None):
     """Write the plate's frames as the render camera sees them; return the first file or None
     (movies and files OpenCV cannot read keep the distorted plate in the viewport)."""
     fx, fy, cx, cy, dist, width, height = calib
@@ -90,7 +90,9 @@ def _undistorted_plate(scene, plate, calib, frame, folder):
         return None
     out_ext = ".exr" if ext == ".exr" else (".png" if ext in {".jpg", ".jpeg"} else ext)
     written = []
-    for number, path in _frame_files(plate, scene):
+    for done, (number, path) in enumerate(_frame_files(plate, scene)):
+        if progress:
+            progress(done)
         pixels = lens.undistort_to_render(_read_any(path), fx, fy, cx, cy, dist, frame)
         target = os.path.join(folder, f"undistorted_{number:04d}{out_ext}")
         _write_like(target, pixels)
@@ -114,9 +116,10 @@ def _update_clip(plate, calib):
     return clip
 
 
-def apply_lens(scene, camera, fx, fy, cx, cy, dist, width, height):
+def apply_lens(scene, camera, fx, fy, cx, cy, dist, width, height, progress=None):
     """Put a calibrated lens into the scene (see the module docstring); raises PlateLightError
-    before changing anything when the calibration cannot be used. Returns the RenderFrame."""
+    before changing anything when the calibration cannot be used. Returns the RenderFrame.
+    ``progress(i)`` is called before the i-th plate frame is undistorted."""
     import numpy as np
 
     from ..addon.exr_io import write_exr
@@ -129,7 +132,7 @@ def apply_lens(scene, camera, fx, fy, cx, cy, dist, width, height):
     os.makedirs(folder, exist_ok=True)
     stmap_path = os.path.join(folder, "lens_stmap.exr")
     write_exr(stmap_path, lens.st_map(fx, fy, cx, cy, dist, width, height, frame))
-    undistorted = _undistorted_plate(scene, plate, calib, frame, folder) if plate is not None else None
+    undistorted = _undistorted_plate(scene, plate, calib, frame, folder, progress) if plate is not None else None
 
     scene[LENS_KEY] = json.dumps({"fx": fx, "fy": fy, "cx": cx, "cy": cy, "dist": list(dist),
                                   "width": width, "height": height})
@@ -242,16 +245,21 @@ class PLATELIGHT_OT_setup_lens(NeedsScene, bpy.types.Operator):
             self.report({"ERROR"}, "No plate found; run Set Up Plate (platelight.setup_plate) first.")
             return {"CANCELLED"}
         width, height = scene.render.resolution_x, scene.render.resolution_y
+        wm = context.window_manager
+        wm.progress_begin(0, max(1, scene.frame_end - scene.frame_start + 1))
         try:
             k = load_calibration(bpy.path.abspath(self.filepath))
             size = _calibration_size(bpy.path.abspath(self.filepath))
             if size and size != (width, height):
                 raise PlateLightError(f"The calibration is for {size[0]}×{size[1]} images but the plate is "
                                       f"{width}×{height}; calibrate at the plate's size.")
-            frame = apply_lens(scene, camera, k.fx, k.fy, k.cx, k.cy, k.dist, width, height)
+            frame = apply_lens(scene, camera, k.fx, k.fy, k.cx, k.cy, k.dist, width, height,
+                               progress=wm.progress_update)
         except PlateLightError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
+        finally:
+            wm.progress_end()
         self.report({"INFO"}, f"Lens set: the CG is rendered with {100 * (1 / frame.scale - 1):.1f} % "
                     "overscan and redistorted onto the plate; run Set Up Composite to wire it.")
         return {"FINISHED"}
