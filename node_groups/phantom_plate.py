@@ -1,4 +1,4 @@
-"""The material "PlateLight Phantom Plate": a phantom shows the plate, projected from the plate's
+"""The material names.PHANTOM_PLATE_MATERIAL ("PlateLight Phantom Plate"): a phantom shows the plate, projected from the plate's
 camera, to every ray that is not the composite's camera ray (reflections in CG, light bounced
 onto CG, probe renders), so a chrome CG object reflects the real floor and the real floor's
 colour bleeds onto CG. The composite's own camera rays see a diffuse surface whose albedo is
@@ -13,9 +13,9 @@ out in math nodes) when the scene has one, so the lookup lands on the distorted 
 Rebuilt in place (idempotent) whenever the camera, plate or lens may have changed."""
 import bpy
 
+from ..addon import names
 from ._build import Graph
 
-MATERIAL_NAME = "PlateLight Phantom Plate"
 PROBE_RENDER_ATTRIBUTE = "platelight.probe_render"
 
 
@@ -41,7 +41,7 @@ def build_phantom_plate_material(scene, camera, plate_image, intrinsics, frame_o
     of the plate's own camera."""
     fx, fy, cx, cy, dist, width, height = intrinsics
     k1, k2, p1, p2, k3 = (list(dist) + [0.0] * 5)[:5]
-    mat = bpy.data.materials.get(MATERIAL_NAME) or bpy.data.materials.new(MATERIAL_NAME)
+    mat = bpy.data.materials.get(names.PHANTOM_PLATE_MATERIAL) or bpy.data.materials.new(names.PHANTOM_PLATE_MATERIAL)
     mat.use_nodes = True
     tree = mat.node_tree
     tree.nodes.clear()

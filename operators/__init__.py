@@ -2,7 +2,8 @@
 ``register_extra()``/``unregister_extra()`` (menu entries). Add new modules to _MODULES."""
 import importlib
 
-_MODULES = ("bake", "material", "track", "capture_probe", "composite", "plate", "lights", "grain", "lens")
+_MODULES = ("bake", "material", "track", "capture_probe", "composite", "plate", "lights", "grain",
+            "farm_job", "lens")
 
 
 def _load():
@@ -10,7 +11,7 @@ def _load():
 
 
 def register():
-    from ..addon.ui.registration import register_classes
+    from ..ui.registration import register_classes
 
     for module in _load():
         register_classes(module.classes)
@@ -19,7 +20,7 @@ def register():
 
 
 def unregister():
-    from ..addon.ui.registration import unregister_classes
+    from ..ui.registration import unregister_classes
 
     for module in reversed(_load()):
         if hasattr(module, "unregister_extra"):

@@ -7,7 +7,7 @@ sees the whole distorted frame, and the compositor redistorts the rendered layer
 - the scene camera gets the overscan pinhole (addon/compositing/lens.py ``render_frame``);
 - "PlateLight Lens ST-Map" (an EXR) tells a Map UV node, for every plate pixel, where the
   render shows that point; ``wire_redistortion`` puts one Map UV after each Render Layers output
-  of the composite tree (the shadow-catcher ratio as ratio - 1, so untouched pixels stay exactly 1);
+  of the composite tree (node_groups/redistortion.py);
 - "PlateLight Plate Undistorted" (the plate seen by the render camera) is the camera's
   background image, so phantoms are placed on the plate as the render will see them.
 """
@@ -17,15 +17,11 @@ import os
 import bpy
 from bpy.props import StringProperty
 
+from ..addon import names
 from ..addon.compositing import lens
 from ..addon.errors import PlateLightError
-from .common import NeedsScene, PLATE_FRAME_OFFSET_KEY, find_plate_image, output_folder
+from .common import NeedsScene, data_folder, find_plate_image
 
-LENS_KEY = "platelight_lens"          # on the scene: the calibration, JSON
-STMAP_IMAGE = "PlateLight Lens ST-Map"
-UNDISTORTED_IMAGE = "PlateLight Plate Undistorted"
-CLIP_NAME = "PlateLight Plate"
-MAP_UV_LABEL = "PlateLight Redistort"
 
 
 def set_pinhole(scene, cam, fx, fy, cx, cy, width, height):
@@ -38,7 +34,7 @@ def set_pinhole(scene, cam, fx, fy, cx, cy, width, height):
 
 def scene_lens(scene):
     """(fx, fy, cx, cy, dist, width, height) stored by apply_lens, or None."""
-    text = scene.get(LENS_KEY)
+    text = scene.get(names.LENS_KEY)
     if not text:
         return None
     d = json.loads(text)
@@ -47,12 +43,12 @@ def scene_lens(scene):
 
 def _frame_files(image, scene):
     """(scene frame, file) of the plate's frames on disk."""
-    from .plate import sequence_frame_path
+    from ..addon.footage import sequence_frame_path
 
     path = bpy.path.abspath(image.filepath)
     if image.source != "SEQUENCE":
         return [(scene.frame_start, path)]
-    offset = int(image.get(PLATE_FRAME_OFFSET_KEY, 0))
+    offset = int(image.get(names.PLATE_FRAME_OFFSET_KEY, 0))
     return [(f, sequence_frame_path(path, f + offset)) for f in range(scene.frame_start, scene.frame_end + 1)]
 
 
@@ -104,12 +100,12 @@ def _update_clip(plate, calib):
     """The plate's Movie Clip, with the calibration in its tracking camera."""
     fx, fy, cx, cy, dist, width, height = calib
     path = bpy.path.abspath(plate.filepath)
-    clip = bpy.data.movieclips.get(CLIP_NAME)
+    clip = bpy.data.movieclips.get(names.PLATE_CLIP)
     if clip is None or bpy.path.abspath(clip.filepath) != path:
         if clip is not None:
             bpy.data.movieclips.remove(clip)
         clip = bpy.data.movieclips.load(path)
-        clip.name = CLIP_NAME
+        clip.name = names.PLATE_CLIP
     camera = clip.tracking.camera
     for name, value in lens.clip_camera_settings(fx, fy, cx, cy, dist, width, height).items():
         setattr(camera, name, value)
@@ -128,19 +124,19 @@ def apply_lens(scene, camera, fx, fy, cx, cy, dist, width, height, progress=None
     frame = lens.render_frame(fx, fy, cx, cy, dist, width, height)    # checks the model first
     calib = (fx, fy, cx, cy, dist, width, height)
     plate = find_plate_image(scene)
-    folder = output_folder(scene, "lens")
+    folder = data_folder(scene, "lens")
     os.makedirs(folder, exist_ok=True)
     stmap_path = os.path.join(folder, "lens_stmap.exr")
     write_exr(stmap_path, lens.st_map(fx, fy, cx, cy, dist, width, height, frame))
     undistorted = _undistorted_plate(scene, plate, calib, frame, folder, progress) if plate is not None else None
 
-    scene[LENS_KEY] = json.dumps({"fx": fx, "fy": fy, "cx": cx, "cy": cy, "dist": list(dist),
+    scene[names.LENS_KEY] = json.dumps({"fx": fx, "fy": fy, "cx": cx, "cy": cy, "dist": list(dist),
                                   "width": width, "height": height})
-    stmap = bpy.data.images.get(STMAP_IMAGE)
+    stmap = bpy.data.images.get(names.LENS_STMAP_IMAGE)
     if stmap is not None:
         bpy.data.images.remove(stmap)
     stmap = bpy.data.images.load(stmap_path, check_existing=False)
-    stmap.name = STMAP_IMAGE
+    stmap.name = names.LENS_STMAP_IMAGE
     stmap.colorspace_settings.name = "Non-Color"
     set_pinhole(scene, camera.data, *frame.intrinsics(fx, fy, cx, cy), width, height)
     if plate is not None:
@@ -151,12 +147,12 @@ def apply_lens(scene, camera, fx, fy, cx, cy, dist, width, height, progress=None
 
 
 def _show_undistorted(scene, camera, plate, first_file):
-    old = bpy.data.images.get(UNDISTORTED_IMAGE)
+    old = bpy.data.images.get(names.PLATE_UNDISTORTED_IMAGE)
     image = bpy.data.images.load(first_file, check_existing=False)
     if old is not None:
         old.user_remap(image)
         bpy.data.images.remove(old)
-    image.name = UNDISTORTED_IMAGE
+    image.name = names.PLATE_UNDISTORTED_IMAGE
     image.colorspace_settings.name = plate.colorspace_settings.name
     count = scene.frame_end - scene.frame_start + 1
     image.source = "SEQUENCE" if plate.source == "SEQUENCE" else "FILE"
@@ -168,51 +164,6 @@ def _show_undistorted(scene, camera, plate, first_file):
     background.image_user.frame_start = scene.frame_start
     background.image_user.frame_duration = count
     background.image_user.frame_offset = scene.frame_start - 1
-
-
-def wire_redistortion(scene, tree):
-    """A Map UV node (the ST-map) after every Render Layers output used in ``tree``: the CG and
-    shadow layers are rendered undistorted and land on the plate through its own lens. Nothing
-    when the scene has no lens. Idempotent: the tree is rebuilt before this runs."""
-    stmap = bpy.data.images.get(STMAP_IMAGE)
-    if scene_lens(scene) is None or stmap is None:
-        return 0
-    nodes, links = tree.nodes, tree.links
-    source = nodes.new("CompositorNodeImage")
-    source.name = source.label = STMAP_IMAGE
-    source.image = stmap
-    source.location = (-1100, -800)
-    count = 0
-    for link in [l for l in links if l.from_node.bl_idname == "CompositorNodeRLayers"]:
-        out_socket, to_socket = link.from_socket, link.to_socket
-        x, y = link.from_node.location
-        links.remove(link)
-        ratio = out_socket.name == "Shadow Catcher"
-        value = out_socket
-        if ratio:   # map (ratio - 1): bilinear weights of exact zeros stay exactly zero
-            value = _math(nodes, links, "SUBTRACT", value, 1.0, (x + 150, y - 40 * count))
-        remap = nodes.new("CompositorNodeMapUV")
-        remap.label = MAP_UV_LABEL
-        remap.location = (x + 300, y - 40 * count)
-        if "Interpolation" in remap.inputs:     # Blender 5: a menu socket; 4.5: EWA filtering only
-            remap.inputs["Interpolation"].default_value = "Bilinear"
-        links.new(value, remap.inputs["Image"])
-        links.new(source.outputs["Image"], remap.inputs["UV"])
-        result = remap.outputs["Image"]
-        if ratio:
-            result = _math(nodes, links, "ADD", result, 1.0, (x + 450, y - 40 * count))
-        links.new(result, to_socket)
-        count += 1
-    return count
-
-
-def _math(nodes, links, operation, socket, value, location):
-    node = nodes.new("ShaderNodeMath")
-    node.operation = operation
-    node.location = location
-    links.new(socket, node.inputs[0])
-    node.inputs[1].default_value = value
-    return node.outputs[0]
 
 
 class PLATELIGHT_OT_setup_lens(NeedsScene, bpy.types.Operator):
@@ -233,7 +184,7 @@ class PLATELIGHT_OT_setup_lens(NeedsScene, bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def execute(self, context):
-        from ..addon.capture.tracking import load_calibration
+        from ..addon.capture.intrinsics import load_calibration
 
         scene = context.scene
         camera = scene.camera

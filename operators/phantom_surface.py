@@ -9,10 +9,12 @@ import json
 
 import bpy
 
-from ..node_groups.phantom_plate import MATERIAL_NAME, build_phantom_plate_material, pinhole_from_camera
-from .common import PLATE_FRAME_OFFSET_KEY, find_plate_image
+from ..addon import names
+from ..node_groups.phantom_plate import build_phantom_plate_material, pinhole_from_camera
+from .common import find_plate_image
 
-KEPT_KEY = "platelight_kept_materials"   # on the object: {slot index: object-linked material name}
+KEPT_KEY = names.KEPT_MATERIALS_KEY      # on the object: {slot index: object-linked material name}
+MATERIAL_NAME = names.PHANTOM_PLATE_MATERIAL
 
 
 def phantom_surface(scene, ob):
@@ -42,7 +44,7 @@ def apply_phantom_surfaces(scene, phantoms):
     material = None
     if wanted:
         material = build_phantom_plate_material(scene, camera, plate, plate_intrinsics(scene, camera),
-                                                int(plate.get(PLATE_FRAME_OFFSET_KEY, 0)))
+                                                int(plate.get(names.PLATE_FRAME_OFFSET_KEY, 0)))
     for ob in phantoms:
         if ob in wanted:
             _show_plate(ob, material)

@@ -12,7 +12,9 @@ import sys
 import tempfile
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared"
+# the shared contracts and data: beside the checkout (/work/main) or above a worktree (/work/wt/NAME)
+SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "design.md").is_file()),
+              REPO.parent / "shared")
 GRACE = SHARED / "data" / "probes" / "grace_latlong.exr"
 EXT_MODULE = "bl_ext.dev.platelight"
 

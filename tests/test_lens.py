@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import support
-from platelight.addon.capture.tracking import load_calibration
+from platelight.addon.capture.intrinsics import load_calibration
 from platelight.addon.compositing import lens
 from platelight.addon.errors import PlateLightError
 

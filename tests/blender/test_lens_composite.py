@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import support  # noqa: F401
-from platelight.addon.capture.tracking import blender_to_cv_pose
+from platelight.addon.capture.poses import blender_to_cv_pose
 from platelight.addon.exr_io import read_exr, write_exr
 from composite_scene import render_with_passes
 from test_composite_inputs import scene_state

@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 
 import support  # noqa: F401
-from platelight.addon.capture.tracking import CharucoTarget
+from platelight.addon.capture.targets import CharucoTarget
 from composite_scene import render_with_passes
 from test_lens import _real_data
 
