@@ -28,6 +28,7 @@ from .probe_inputs import (GEOMETRY_TYPES, Describer, environment_exr, maps_for,
                            world_description)
 from ..addon.errors import PlateLightError
 from ..addon.exr_io import read_exr
+from ..addon.hdr_io import read_probe
 from ..addon.ibl.maps import (DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, map_filename,
                               write_maps)
 
@@ -461,7 +462,7 @@ class ProbeBake:
             return
         if not cached:
             if source is not None:
-                env = read_exr(source, "RGB") * np.float32(strength)
+                env = read_probe(source) * np.float32(strength)
             else:
                 hidden = [o for o in scene.objects if renderable(o, self.view_layer)]
                 env = self.render_probe((0.0, 0.0, 0.0), hidden=hidden)

@@ -24,6 +24,17 @@ def _numbers(text: str, what: str, count=None):
     return values
 
 
+# The engine's sentences name the CLI's flags; here they name this operator's fields.
+FLAG_TO_FIELD = {"--ball CX,CY,R": "the Ball Circle field (CX,CY,R)",
+                 "--exposures T1,T2,...": "the Exposure Times field", "--grey-card": "the Grey Card field"}
+
+
+def _in_fields(text: str) -> str:
+    for flag, field in FLAG_TO_FIELD.items():
+        text = text.replace(flag, field)
+    return text
+
+
 class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
     """Merge exposure brackets of a chrome ball into an HDR lat-long probe and light the world with it"""
     bl_idname = "platelight.capture_probe"
@@ -70,7 +81,7 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
         folder = bpy.path.abspath(self.directory)
         paths = [os.path.join(folder, f.name) for f in self.files if f.name]
         if not paths:
-            self.report({"ERROR"}, "Select the exposure brackets of the chrome ball.")
+            self.report({"ERROR"}, "Select a photo of the chrome ball, or its exposure brackets.")
             return {"CANCELLED"}
         out = bpy.path.abspath(self.output) if self.output else os.path.join(folder, "probe.exr")
         wm = context.window_manager
@@ -95,15 +106,15 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            self.report({"ERROR"}, _in_fields(str(err)))
             return {"CANCELLED"}
         finally:
             wm.progress_end()
         self._set_world(context, out)
         for warning in result.warnings:
-            self.report({"WARNING"}, warning)
+            self.report({"WARNING"}, _in_fields(warning))
         b = result.ball
-        self.report({"INFO"}, f"Probe from {len(paths)} brackets (ball at {b.cx:.0f}, {b.cy:.0f}, "
+        self.report({"INFO"}, f"Probe from {len(paths)} photo(s) (ball at {b.cx:.0f}, {b.cy:.0f}, "
                               f"r {b.radius:.0f} px) -> {out}")
         return {"FINISHED"}
 

@@ -110,7 +110,7 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
 
     def execute(self, context):
         from ..addon.errors import PlateLightError
-        from ..addon.exr_io import read_exr
+        from ..addon.hdr_io import read_probe
         from ..addon.ibl.lights import probe_lights
 
         scene = context.scene
@@ -119,7 +119,7 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
             self.report({"ERROR"}, f"World probe not found: {path or '(none set)'}.")
             return {"CANCELLED"}
         try:
-            env = read_exr(path)
+            env = read_probe(path)
             if self.mode == "SUN_SKY":
                 return self._sun_and_sky(scene, path, env)
             lights = probe_lights(env, self.count, self.detect_sun)

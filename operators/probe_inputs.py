@@ -279,9 +279,9 @@ def world_description(scene):
 
 
 def environment_exr(world):
-    """(EXR path, strength) when the world is exactly an equirectangular EXR image feeding a
-    Background node into the World Output (no mapping, no colour nodes between); None when the
-    world has to be rendered instead to get it right."""
+    """(probe path, strength) when the world is exactly an equirectangular EXR or Radiance .hdr
+    image feeding a Background node into the World Output (no mapping, no colour nodes between);
+    None when the world has to be rendered instead to get it right."""
     tree = world.node_tree
     if tree is None:
         return None
@@ -300,6 +300,7 @@ def environment_exr(world):
         return None
     image = env.image
     path = bpy.path.abspath(image.filepath, library=image.library)
-    if image.packed_file is not None or not path.lower().endswith(".exr") or not os.path.isfile(path):
+    if (image.packed_file is not None or not path.lower().endswith((".exr", ".hdr"))
+            or not os.path.isfile(path)):
         return None
     return path, float(background.inputs["Strength"].default_value)
