@@ -17,6 +17,7 @@ from typing import Iterator
 import numpy as np
 
 from ..errors import PlateLightError
+from . import calibration
 
 # OpenCV camera (x right, y down, looks along +z) -> Blender camera (x right, y up, looks along -z)
 # FFmpeg's own log lines would follow our one-sentence errors on stderr (read when first used).
@@ -238,11 +239,14 @@ class Tracker:
             side = float(np.median([_side_px(c) for c in m_corners]))
             if side < MIN_MARKER_SIDE_PX:
                 return Detection(too_small=True, side_px=side)
-            # The interpolated ChArUco corners sit ~0.5 px off (measured on Cycles renders);
-            # the chessboard saddles themselves refine to ~0.1 px with a small window.
-            win = int(np.clip(round(side / 7), 2, 6))
-            ch_corners = cv2.cornerSubPix(gray, ch_corners.astype(np.float32), (win, win), (-1, -1),
-                                          (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-3))
+            # OpenCV before its 2026 fix returns ChArUco corners +0.5 px off (measured on Cycles
+            # renders); the chessboard saddles themselves refine to ~0.1 px with a small window.
+            # With the fix its corners are used as they are (refining again moved them up to
+            # 0.5 px on real JPEG photos: calibration RMS 0.19 -> 0.25 px).
+            if calibration.charuco_corners_biased():
+                win = int(np.clip(round(side / 7), 2, 6))
+                ch_corners = cv2.cornerSubPix(gray, ch_corners.astype(np.float32), (win, win), (-1, -1),
+                                              (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-3))
             obj, img = self.target.board.matchImagePoints(ch_corners, ch_ids)
             return Detection(self.target.board_to_world(obj), img.reshape(-1, 2).astype(np.float64),
                              "charuco", side_px=side)
@@ -466,6 +470,7 @@ class TrackResult:
     frames: list[dict]
     target_extent: tuple[float, float]
     warnings: list[str] = dataclasses.field(default_factory=list)
+    calibration: dict | None = None           # calibration.Calibration.to_json() when calibrated
 
     @property
     def tracked_count(self) -> int:
@@ -478,6 +483,7 @@ class TrackResult:
             "target_size": list(self.target_extent),
             "frames": self.frames,
             "warnings": self.warnings,
+            **({"calibration": self.calibration} if self.calibration else {}),
         }
 
 
@@ -547,9 +553,14 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
         raise PlateLightError(f"No {target.dictionary} marker was found in any of the {len(detections)} frames.")
 
     warnings = []
+    cal = None
     if calibrate:
-        intrinsics, rms = calibrate_from_detections([d for _, d in found], size)
-        warnings.append(f"calibrated from {len(found)} frames, RMS reprojection {rms:.3f} px")
+        intrinsics, cal = calibrate_from_detections([d for _, d in found], size)
+        warnings.append(f"calibrated from {cal.views} frames, RMS reprojection {cal.rms_px:.3f} px, "
+                        f"fx {intrinsics.fx:.1f} +- {cal.std['fx']:.1f}, fy {intrinsics.fy:.1f} +- "
+                        f"{cal.std['fy']:.1f}, cx {intrinsics.cx:.1f} +- {cal.std['cx']:.1f}, "
+                        f"cy {intrinsics.cy:.1f} +- {cal.std['cy']:.1f} px")
+        warnings.extend(cal.warnings)
     elif intrinsics is None:
         intrinsics = (Intrinsics.from_focal_px(focal_px, *size) if focal_px is not None
                       else Intrinsics.from_lens(lens_mm, sensor_width_mm, *size))
@@ -592,7 +603,8 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
     if lost_frames:
         warnings.append(f"tracking lost in {len(lost_frames)} of {len(detections)} frames: "
                         f"{_ranges(lost_frames)} ({'interpolated' if lost == 'interpolate' else 'left unkeyed'})")
-    return TrackResult(size, intrinsics, frames, target.extent, warnings)
+    return TrackResult(size, intrinsics, frames, target.extent, warnings,
+                       cal.to_json() if cal is not None else None)
 
 
 def _ranges(frames: list[int]) -> str:
@@ -608,21 +620,11 @@ def _ranges(frames: list[int]) -> str:
 
 
 def calibrate_from_detections(detections: list[Detection], size: tuple[int, int]):
-    """Intrinsics (k1, k2 distortion) from ChArUco detections; (Intrinsics, rms px)."""
-    import cv2
-
+    """Intrinsics with OpenCV's five distortion coefficients from ChArUco detections:
+    (Intrinsics, calibration.Calibration) (see calibration.py)."""
     usable = [d for d in detections if d.kind == "charuco" and len(d.object_points) >= 6]
-    if len(usable) < 3:
-        raise PlateLightError(
-            f"Calibration needs the board in at least 3 frames with 6 corners each; found {len(usable)}.")
-    obj = [d.object_points.astype(np.float32) for d in usable]
-    img = [d.image_points.astype(np.float32).reshape(-1, 1, 2) for d in usable]
-    # k3 and tangential terms overfit a handful of frames (6 Cycles frames: k3 = -11.9, cx off
-    # by 4.5 px); k1, k2 are enough for all but wide lenses.
-    flags = cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
-    rms, k, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None, flags=flags)
-    return Intrinsics(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]),
-                      tuple(float(v) for v in dist.reshape(-1))), float(rms)
+    cal = calibration.calibrate([d.object_points for d in usable], [d.image_points for d in usable], size)
+    return Intrinsics(cal.fx, cal.fy, cal.cx, cal.cy, cal.dist), cal
 
 
 def rotation_error_deg(r_a: np.ndarray, r_b: np.ndarray) -> float:
