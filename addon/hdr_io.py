@@ -6,10 +6,10 @@ Radiance files: a ``#?RADIANCE`` (or ``#?RGBE``) line, header lines up to an emp
 ``PIXASPECT``, ``VIEW``, comments and unknown lines are kept as text), a resolution line in any of
 the eight orientations (``-Y H +X W`` is the usual top-to-bottom, left-to-right one), then
 scanlines either run-length encoded per channel (the "new" RLE every writer uses) or flat
-4-byte pixels (with the old RLE's repeat markers). Pixels decode like Blender's own reader,
-``(m + 0.5) · 2^(e - 136)`` (OpenCV drops the + 0.5: values differ by at most half a mantissa
-step). ``EXPOSURE`` is not divided out, as Blender does not either: the world renders the values
-as stored, and the maps must match the world.
+4-byte pixels (with the old RLE's repeat markers). Pixels decode as ``m · 2^(e - 136)``, as
+Blender 5.2's loader and OpenCV's do (measured: equal to the last bit; Ward's Radiance adds
+half a mantissa step). ``EXPOSURE`` is not divided out, as Blender does not either: the world
+renders the values as stored, and the maps must match the world.
 """
 from __future__ import annotations
 
@@ -188,7 +188,7 @@ def _read_flat_scanline(buf, pos, out, row, length, path) -> int:
 def _rgbe_to_float(rgbe: np.ndarray) -> np.ndarray:
     e = rgbe[..., 3].astype(np.int32)
     scale = np.where(e > 0, np.ldexp(np.float32(1.0), e - 136), 0).astype(np.float32)
-    return ((rgbe[..., :3].astype(np.float32) + np.float32(0.5)) * scale[..., None]).astype(np.float32)
+    return (rgbe[..., :3].astype(np.float32) * scale[..., None]).astype(np.float32)
 
 
 def _orient(image: np.ndarray, resolution: str) -> np.ndarray:
