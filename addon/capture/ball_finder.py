@@ -204,7 +204,7 @@ def smoothed(linear: np.ndarray) -> np.ndarray:
     """Light smoothing against JPEG blocks and sensor noise before the rim is located."""
     import cv2
 
-    return cv2.GaussianBlur(linear, (0, 0), 0.8)
+    return cv2.GaussianBlur(linear, (0, 0), 0.5)
 
 
 def fit_ellipse(points: np.ndarray, allow_ellipse: bool):
