@@ -1,6 +1,6 @@
-"""`python -m platelight ...`: the command-line interface (see addon/cli.py)."""
+"""`python -m platelight ...`: the command-line interface (see cli.py)."""
 import sys
 
-from .addon.cli import main
+from .cli import main
 
 sys.exit(main())

@@ -5,10 +5,9 @@ import os
 import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProperty
 
+from ..addon import names
 from .common import NeedsScene
 
-ENV_NODE_NAME = "PlateLight Probe"
-WORLD_NAME = "PlateLight World"
 
 
 def _numbers(text: str, what: str, count=None):
@@ -92,7 +91,9 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             card = _numbers(self.grey_card, "grey card box", 4) if self.grey_card.strip() else None
             align, intrinsics = None, None
             if self.align_marker_size > 0:
-                from ..addon.capture.tracking import Intrinsics, MarkerTarget, read_image
+                from ..addon.capture.intrinsics import Intrinsics
+                from ..addon.capture.targets import MarkerTarget
+                from ..addon.footage import read_image
 
                 align = MarkerTarget("DICT_4X4_50", self.align_marker_size)
                 if os.path.isfile(paths[0]):
@@ -122,17 +123,17 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
         scene = context.scene
         world = scene.world
         if world is None:
-            world = bpy.data.worlds.new(WORLD_NAME)
+            world = bpy.data.worlds.new(names.WORLD)
             scene.world = world
         nt = world.node_tree
         background = next((n for n in nt.nodes if n.type == "BACKGROUND"), None) or nt.nodes.new("ShaderNodeBackground")
         output = next((n for n in nt.nodes if n.type == "OUTPUT_WORLD"), None) or nt.nodes.new("ShaderNodeOutputWorld")
         if not background.outputs["Background"].links:
             nt.links.new(background.outputs["Background"], output.inputs["Surface"])
-        env = nt.nodes.get(ENV_NODE_NAME)
+        env = nt.nodes.get(names.WORLD_PROBE_NODE)
         if env is None:
             env = nt.nodes.new("ShaderNodeTexEnvironment")
-            env.name = env.label = ENV_NODE_NAME
+            env.name = env.label = names.WORLD_PROBE_NODE
             env.location = (background.location.x - 300, background.location.y)
         image = bpy.data.images.load(path, check_existing=True)
         image.reload()

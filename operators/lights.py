@@ -16,9 +16,10 @@ import tempfile
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty
+
+from ..addon import names
 from mathutils import Vector
 
-LIGHTS_COLLECTION = "PlateLight Lights"
 
 
 def world_probe_path(scene):
@@ -35,7 +36,7 @@ def world_probe_path(scene):
 
 def create_sun_lights(scene, lights, name_prefix="PlateLight"):
     """Replace the contents of the "PlateLight Lights" collection by sun lamps for ``lights``."""
-    coll = bpy.data.collections.get(LIGHTS_COLLECTION) or bpy.data.collections.new(LIGHTS_COLLECTION)
+    coll = bpy.data.collections.get(names.LIGHTS_COLLECTION) or bpy.data.collections.new(names.LIGHTS_COLLECTION)
     if coll.name not in scene.collection.children:
         scene.collection.children.link(coll)
     for ob in list(coll.objects):

@@ -88,7 +88,8 @@ def render(bpy, scene, path):
 
 
 def render_with_passes(bpy, scene, folder):
-    ops_module("composite").add_pass_outputs(scene, str(folder) + "/")
+    importlib.import_module(f"{support.EXT_MODULE}.node_groups.compositor_tree").add_pass_outputs(
+        scene, str(folder) + "/")
     out = render(bpy, scene, folder / "composite.exr")
     return out, {n: read_exr(folder / f"{n}.exr", "RGBA") for n in ("CG", "Shadows")}
 

@@ -10,7 +10,10 @@ import pytest
 
 import real_photos as rp
 import support
-from platelight.addon.capture.tracking import CharucoTarget, blender_to_cv_pose, load_calibration, track
+from platelight.addon.capture.intrinsics import load_calibration
+from platelight.addon.capture.poses import blender_to_cv_pose
+from platelight.addon.capture.targets import CharucoTarget
+from platelight.addon.capture.tracking import track
 
 pytestmark = pytest.mark.skipif(not rp.CHARUCO.is_dir(), reason="shared/data/real is not here")
 BOARD = ("DICT_6X6_250", (5, 7), 0.04, 0.02)

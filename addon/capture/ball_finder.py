@@ -22,6 +22,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import PlateLightError
+from ..imaging import SRGB8_TO_LINEAR, srgb_to_linear
 
 SEARCH_SIZE = 800           # px, longest side of the copy the candidates are searched on
 RAYS = 720
@@ -38,8 +39,6 @@ RIVAL_SHARE = 0.6           # a second, separate ball this well supported (relat
 MIN_RIVAL = 0.25            # and absolutely) makes the choice ambiguous
 ELLIPSE_GAIN = 0.02
 MIN_RADIUS_PX = 32          # smaller balls unwrap to too few pixels to be worth finding by themselves         # an ellipse must see this much more of the rim than a circle
-SRGB_TO_LINEAR_255 = np.array([(v / 12.92) if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
-                               for v in np.arange(256) / 255.0], dtype=np.float32) * 255.0
 LAST_FITS: list = []
 HOW_TO_GIVE = "give its circle with --ball CX,CY,R"
 
@@ -86,12 +85,10 @@ def luminance_planes(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if img.ndim == 2:
         img = img[..., None]
     if img.dtype == np.uint8:
-        linear = cv2.LUT(img if img.shape[2] != 1 else img[..., 0], SRGB_TO_LINEAR_255)
+        linear = cv2.LUT(img if img.shape[2] != 1 else img[..., 0], SRGB8_TO_LINEAR)
         display = img.astype(np.float32)
     else:                                                       # 16-bit, as 0..255 floats
-        v = img / np.float32(255.0)
-        linear = np.where(v <= 0.04045, v / np.float32(12.92),
-                          ((v + np.float32(0.055)) / np.float32(1.055)) ** np.float32(2.4)) * np.float32(255.0)
+        linear = srgb_to_linear(img / np.float32(255.0)) * np.float32(255.0)
         display = img
     linear = linear.reshape(img.shape[:2] + (-1,))
     display = display.reshape(img.shape[:2] + (-1,))

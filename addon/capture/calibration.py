@@ -12,7 +12,6 @@ lens has k3 ~ 3): a few views cannot tell a wrong focal length from missing dist
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import numpy as np
 
@@ -94,22 +93,3 @@ def weak_fit_warnings(cal: Calibration) -> list[str]:
     if not problems:
         return []
     return [f"the calibration is weak: {'; '.join(problems)}. To fix it, {ADVICE}"]
-
-
-@functools.lru_cache(maxsize=1)
-def charuco_corners_biased() -> bool:
-    """Whether this OpenCV's CharucoDetector returns its corners +0.5 px off (opencv #25539,
-    fixed by PR #28380 in 2026, after 4.11): measured once on a generated board, whose inner
-    corners lie exactly on pixel boundaries, rather than guessed from the version number."""
-    import cv2
-
-    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50)
-    board = cv2.aruco.CharucoBoard((5, 7), 1.0, 0.7, dictionary)
-    square, margin = 40, 20
-    image = board.generateImage((5 * square + 2 * margin, 7 * square + 2 * margin), marginSize=margin, borderBits=1)
-    image = cv2.GaussianBlur(image, (0, 0), 1.0)
-    corners, ids, _, _ = cv2.aruco.CharucoDetector(board).detectBoard(image)
-    if ids is None or len(ids) < 4:
-        return False
-    expected = margin + board.getChessboardCorners()[ids.reshape(-1)][:, :2] * square - 0.5
-    return bool(np.mean(corners.reshape(-1, 2) - expected) > 0.25)

@@ -15,6 +15,7 @@ import struct
 import numpy as np
 
 from ..errors import PlateLightError
+from ..imaging import srgb_to_linear
 
 SATURATED = 250      # 8-bit value from which a pixel counts as clipped
 DARK = 5             # and below which as lost in the noise floor
@@ -141,15 +142,9 @@ def read_photo(path: str) -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
-def _srgb_linear(v):
-    """sRGB decoding of values in 0..1."""
-    v = np.asarray(v, dtype=np.float64)
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
-
-
 def srgb_response() -> np.ndarray:
     """The sRGB decoding curve as an inverse response (256, 3), value 128 -> 1 like Debevec's."""
-    lin = _srgb_linear(np.arange(256) / 255.0)
+    lin = srgb_to_linear(np.arange(256) / 255.0)
     return np.repeat((lin / lin[128])[:, None], 3, axis=1)
 
 
@@ -169,8 +164,8 @@ def single_photo(path: str, exposure: float | None = None) -> tuple[np.ndarray, 
         rad = np.nan_to_num(np.maximum(img[..., ::-1], 0), nan=0.0, posinf=0.0).astype(np.float32)
         return img, MergeResult(rad, np.zeros(rad.shape[:2], bool), resp, []), t
     if img.dtype == np.uint16:
-        lin = _srgb_linear(img / 65535.0).astype(np.float32)
-        rad = lin / np.float32(_srgb_linear(128 / 255.0))
+        lin = srgb_to_linear(img / np.float32(65535.0)).astype(np.float32)
+        rad = lin / np.float32(srgb_to_linear(128 / 255.0))
         clipped_ch = img >= int(SATURATED / 255.0 * 65535)
     elif img.dtype == np.uint8:
         rad = cv2.LUT(img, np.ascontiguousarray(resp[None, :, :].astype(np.float32)))
