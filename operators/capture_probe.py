@@ -23,6 +23,18 @@ def _numbers(text: str, what: str, count=None):
     return values
 
 
+def _ball(text: str):
+    """The Ball Circle field: CX,CY,R or, for an elliptical outline, CX,CY,RX,RY."""
+    from ..addon.capture.mirror_ball import Ball
+    from ..addon.errors import PlateLightError
+
+    values = _numbers(text, "ball circle")
+    if len(values) not in (3, 4):
+        raise PlateLightError(f"The ball circle needs 3 comma-separated numbers (CX,CY,R) or 4 "
+                              f"(CX,CY,RX,RY), not '{text}'.")
+    return Ball(*values)
+
+
 # The engine's sentences name the CLI's flags; here they name this operator's fields.
 FLAG_TO_FIELD = {"--ball CX,CY,R": "the Ball Circle field (CX,CY,R)",
                  "--exposures T1,T2,...": "the Exposure Times field", "--grey-card": "the Grey Card field"}
@@ -46,7 +58,8 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
     exposures: StringProperty(name="Exposure Times",
                               description="Seconds per bracket in file-name order, e.g. 1/500,1/125,1/30 "
                                           "(empty: read from EXIF)", default="")
-    ball: StringProperty(name="Ball Circle", description="CX,CY,R in pixels (empty: found automatically)",
+    ball: StringProperty(name="Ball Circle", description="CX,CY,R in pixels, or CX,CY,RX,RY for an elliptical "
+                         "outline (empty: found automatically)",
                          default="")
     height: IntProperty(name="Probe Height", default=256, min=8, soft_max=2048)
     reflectance: FloatProperty(name="Ball Reflectance", default=1.0, min=0.01, max=1.0)
@@ -72,7 +85,6 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
     def execute(self, context):
         import math
 
-        from ..addon.capture.mirror_ball import Ball
         from ..addon.capture.probe import make_probe
         from ..addon.errors import PlateLightError
         from ..addon.exr_io import write_exr
@@ -87,7 +99,7 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
         wm.progress_begin(0, 3)
         try:
             exposures = _numbers(self.exposures, "exposure times") if self.exposures.strip() else None
-            ball = Ball(*_numbers(self.ball, "ball circle", 3)) if self.ball.strip() else None
+            ball = _ball(self.ball) if self.ball.strip() else None
             card = _numbers(self.grey_card, "grey card box", 4) if self.grey_card.strip() else None
             align, intrinsics = None, None
             if self.align_marker_size > 0:
