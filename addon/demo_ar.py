@@ -59,7 +59,9 @@ def blender_with_extension():
 
 
 def _material(bpy, name, colour, roughness=0.5, metallic=0.0, checker=None):
-    mat = bpy.data.materials.new(name)
+    from .. import compat     # bpy glue: imported once Blender runs
+
+    mat = compat.new_material(name)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     bsdf = nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
@@ -144,7 +146,9 @@ def build_real_place(bpy, hdri_path, frames=FRAMES, size=SIZE):
     scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     scene.frame_start, scene.frame_end = 1, frames
-    world = bpy.data.worlds.new("Real Place")
+    from .. import compat
+
+    world = compat.new_world("Real Place")
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdri_path)
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])

@@ -9,6 +9,7 @@ import tempfile
 
 import bpy
 
+from .. import compat
 from ..addon.exr_io import read_exr
 from ..addon.ibl.maps import compute_maps, write_maps
 from ..addon.material.presets import preset_label, preset_names
@@ -30,7 +31,7 @@ def render_preset_row(out_png: str, hdri: str | None = None, presets=None,
     write_maps(maps_dir, compute_maps(read_exr(hdri)).maps)
 
     scene = bpy.data.scenes.new("PlateLight Presets")
-    world = bpy.data.worlds.new("PlateLight Presets")
+    world = compat.new_world("PlateLight Presets")
     scene.world = world
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdri, check_existing=True)

@@ -21,9 +21,11 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
+from .. import compat
+from .world_environment import probe_image
 from ..addon.bake import culling, layout
 from ..addon.bake.hashing import content_hash
-from .probe_inputs import (GEOMETRY_TYPES, Describer, environment_exr, maps_for, point_inside,
+from .probe_inputs import (GEOMETRY_TYPES, Describer, maps_for, point_inside,
                            probe_origin, renderable, visible_in_probe, world_bounds,
                            world_description)
 from ..addon.errors import PlateLightError
@@ -263,7 +265,8 @@ class ProbeBake:
         state.set(render, "use_single_layer", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
-        state.set(fmt, "media_type", "IMAGE")
+        for attr, value in compat.still_image_format():
+            state.set(fmt, attr, value)
         state.set(fmt, "file_format", "OPEN_EXR")
         state.set(fmt, "color_mode", "RGB")
         state.set(fmt, "color_depth", "32")
@@ -438,16 +441,14 @@ class ProbeBake:
         folder_rel = self.world_folder()
         folder = self.abspath(folder_rel)
         settings = self.map_settings()
-        strength = 1.0
-        if scene.platelight.world_probe:
-            source = self.abspath(scene.platelight.world_probe)
-        else:
-            found = environment_exr(scene.world)
-            source, strength = found if found else (None, 1.0)
+        image = probe_image(scene)
+        source = image.path if image is not None else None
         if source is not None:
             # Full-resolution maps from the image itself (not capped by the probe height).
             settings.heights = dict(DEFAULT_HEIGHTS)
-        digest = content_hash({"world": self._world_digest, "source": source, "strength": strength,
+        digest = content_hash({"world": self._world_digest, "source": source,
+                               "strength": image.strength if image else None,
+                               "rotation": image.rotation if image else None,
                                "heights": settings.heights,
                                "sampling": settings.sampling,
                                "samples": None if source else scene.platelight.probe_samples,
@@ -460,8 +461,8 @@ class ProbeBake:
                     self.stale.append((ob.name, None))
             return
         if not cached:
-            if source is not None:
-                env = read_exr(source, "RGB") * np.float32(strength)
+            if image is not None:
+                env = image.read()
             else:
                 hidden = [o for o in scene.objects if renderable(o, self.view_layer)]
                 env = self.render_probe((0.0, 0.0, 0.0), hidden=hidden)

@@ -20,6 +20,7 @@ The plate passes unchanged: Standard view transform, no look, exposure 0, gamma 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
+from .. import compat
 from ..node_groups.composite import build_differential_group
 from .common import PLATE_FRAME_OFFSET_KEY, find_plate_image
 
@@ -91,12 +92,7 @@ def _configure_layer(layer, cg_coll, phantom_coll, cg_state, phantom_holdout):
 def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
     """The scene's compositor tree (rebuilt in place): plate + render layers -> group -> output."""
     group = build_differential_group()
-    tree = bpy.data.node_groups.get(TREE_NAME)
-    if tree is None or tree.bl_idname != "CompositorNodeTree":
-        tree = bpy.data.node_groups.new(TREE_NAME, "CompositorNodeTree")
-    tree.nodes.clear()
-    tree.interface.clear()
-    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    tree = compat.new_compositor_tree(scene, TREE_NAME)
     nodes, links = tree.nodes, tree.links
 
     plate = nodes.new("CompositorNodeImage")
@@ -135,8 +131,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             links.new(socket_b_or_value, sep_b.inputs["Image"])
         result = None
         for k, channel in enumerate(("Red", "Green", "Blue")):
-            cmp = nodes.new("ShaderNodeMath")
-            cmp.operation = "COMPARE"
+            cmp = compat.compositor_math(nodes, "COMPARE")
             cmp.location = (x + 150, y - 60 * k)
             links.new(sep_a.outputs[channel], cmp.inputs[0])
             if sep_b is not None:
@@ -147,8 +142,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             if result is None:
                 result = cmp.outputs[0]
             else:
-                both = nodes.new("ShaderNodeMath")
-                both.operation = "MULTIPLY"
+                both = compat.compositor_math(nodes, "MULTIPLY")
                 both.location = (x + 300, y - 60 * k)
                 links.new(result, both.inputs[0])
                 links.new(cmp.outputs[0], both.inputs[1])
@@ -162,18 +156,16 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         node = nodes.new("CompositorNodeDenoise")
         node.location = (x, y)
         links.new(socket, node.inputs["Image"])
-        mix = nodes.new("ShaderNodeMix")
-        mix.data_type = "RGBA"
-        mix.location = (x + 200, y)
-        links.new(keep_factor, mix.inputs[0])
-        links.new(node.outputs["Image"], mix.inputs[6])
-        links.new(socket, mix.inputs[7])
-        return mix.outputs[2]
+        mix = compat.compositor_mix(nodes)
+        mix.node.location = (x + 200, y)
+        links.new(keep_factor, mix.factor)
+        links.new(node.outputs["Image"], mix.a)
+        links.new(socket, mix.b)
+        return mix.result
 
     cg_image = cg.outputs["Image"]
     if denoise_shadows:
-        alpha_zero = nodes.new("ShaderNodeMath")
-        alpha_zero.operation = "COMPARE"
+        alpha_zero = compat.compositor_math(nodes, "COMPARE")
         alpha_zero.location = (-450, 150)
         links.new(cg.outputs["Alpha"], alpha_zero.inputs[0])
         alpha_zero.inputs[1].default_value = 0.0
@@ -199,10 +191,9 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             local = {k: denoised_unless(v, same, (-300, -300 if k == "With" else -600)) for k, v in local.items()}
         for socket, value in local.items():
             links.new(value, diff.inputs[socket])
-    out = nodes.new("NodeGroupOutput")
-    out.location = (400, 0)
-    links.new(diff.outputs["Image"], out.inputs["Image"])
-    scene.compositing_node_group = tree
+    out = compat.composite_output(tree)
+    out.node.location = (400, 0)
+    links.new(diff.outputs["Image"], out)
     scene.render.use_compositing = True
     from .grain import wire_grain  # grain matched earlier (platelight.match_grain) stays wired
 
@@ -345,20 +336,16 @@ classes = (PLATELIGHT_OT_setup_composite,)
 def add_pass_outputs(scene, directory):
     """Also write the group's CG and Shadows outputs and the plate as float EXRs into ``directory``
     (one file per pass and frame: <pass><frame>.exr); used by the demo and the tests."""
-    tree = scene.compositing_node_group
+    tree = compat.compositor_tree(scene)
     diff = tree.nodes["PlateLight Differential"]
     node = tree.nodes.get("PlateLight Passes") or tree.nodes.new("CompositorNodeOutputFile")
     node.name = node.label = "PlateLight Passes"
     node.location = (400, -300)
-    node.directory = directory
-    node.file_name = ""
-    node.format.media_type = "IMAGE"
+    compat.set_still_image(node.format)
     node.format.file_format = "OPEN_EXR"
     node.format.color_depth = "32"
     node.format.color_mode = "RGBA"
-    node.file_output_items.clear()
-    for name in ("CG", "Shadows", "Plate"):
-        node.file_output_items.new("RGBA", name)
+    compat.set_file_output(node, directory, ("CG", "Shadows", "Plate"))
     tree.links.new(diff.outputs["CG"], node.inputs["CG"])
     tree.links.new(diff.outputs["Shadows"], node.inputs["Shadows"])
     tree.links.new(tree.nodes["Plate"].outputs["Image"], node.inputs["Plate"])

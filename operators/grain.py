@@ -18,6 +18,7 @@ import tempfile
 import bpy
 from bpy.props import IntProperty
 
+from .. import compat
 from .common import PLATE_FRAME_OFFSET_KEY, NeedsScene, find_plate_image
 from .plate import sequence_frame_path
 
@@ -68,7 +69,7 @@ def plate_frame_pixels(image, scene):
 
 
 def differential_node(scene):
-    tree = scene.compositing_node_group
+    tree = compat.compositor_tree(scene)
     if tree is None:
         return None
     node = tree.nodes.get(GROUP_NODE)
@@ -82,7 +83,7 @@ def wire_grain(scene, tree=None):
     (the scene's compositor tree) with its stored settings. Returns the image node or None."""
     image = bpy.data.images.get(GRAIN_IMAGE)
     settings = image.get(SETTINGS_KEY) if image is not None else None
-    tree = tree or scene.compositing_node_group
+    tree = tree or compat.compositor_tree(scene)
     diff = tree.nodes.get(GROUP_NODE) if tree is not None else None
     if settings is None or diff is None:
         return None
