@@ -14,7 +14,10 @@ What differs (README, "Supported Blender versions"):
   inputs are named Background/Foreground on 5.x and are the 2nd/3rd "Image" on 4.5.
 - File Output node: ``directory`` / ``file_output_items`` on 5.x, ``base_path`` / ``file_slots``
   on 4.5.
-- ``ImageFormatSettings.media_type`` exists only on 5.x.
+- ``ImageFormatSettings.media_type`` exists only on 5.x; a File Output node's still-frame files
+  carry the frame number on 4.5 only.
+- EEVEE's engine identifier: BLENDER_EEVEE_NEXT on 4.5, BLENDER_EEVEE on 5.x.
+- 4.5's bpy can deadlock at process exit (exit_process).
 """
 from __future__ import annotations
 
@@ -27,6 +30,8 @@ VERSION = tuple(bpy.app.version[:2])
 BLENDER_4 = VERSION < (5, 0)
 
 Mix = namedtuple("Mix", "node factor a b result")
+# The render engine identifier of EEVEE (4.2-4.5 called the new EEVEE "EEVEE Next").
+EEVEE = "BLENDER_EEVEE_NEXT" if BLENDER_4 else "BLENDER_EEVEE"
 
 
 # ---- materials and worlds
@@ -172,6 +177,14 @@ def set_file_output(node, directory, names):
     node.file_output_items.clear()
     for name in names:
         node.file_output_items.new("RGBA", name)
+
+
+def file_output_path(directory, name, frame):
+    """The file a File Output input ``name`` (set_file_output) writes when ``frame`` is rendered as
+    a still: 4.5 always appends the frame number, 5.x does not for a still."""
+    import os
+
+    return os.path.join(directory, f"{name}{frame:04d}.exr" if BLENDER_4 else f"{name}.exr")
 
 
 # ---- process exit

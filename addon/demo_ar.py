@@ -263,7 +263,7 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
     bpy.ops.platelight.setup_composite(method="CATCHER", samples=COMPOSITE_SAMPLES, denoise_shadows=True)
     from importlib import import_module
 
-    add_pass_outputs = import_module(f"{EXT_MODULE}.operators.composite").add_pass_outputs
+    composite_ops = import_module(f"{EXT_MODULE}.operators.composite")
 
     # 3. render the composites (each file appears complete or not at all)
     t0 = time.perf_counter()
@@ -274,12 +274,13 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
         scene.frame_set(frame)
         pass_dir = out / "passes" / f"{frame:04d}"
         pass_dir.mkdir(parents=True, exist_ok=True)
-        add_pass_outputs(scene, str(pass_dir) + "/")
+        composite_ops.add_pass_outputs(scene, str(pass_dir) + "/")
         exr = comp_dir / f"composite_{frame:04d}.exr"
         _render_still(bpy, scene, str(exr))
         composite = read_exr(exr)
         write_png(comp_dir / f"composite_{frame:04d}.png", linear_to_srgb8(composite))
-        passes = {n: read_exr(pass_dir / f"{n}.exr", "RGBA") for n in ("Plate", "CG", "Shadows")}
+        passes = {n: read_exr(composite_ops.pass_output_path(scene, str(pass_dir), n), "RGBA")
+                  for n in ("Plate", "CG", "Shadows")}
         rows.append([("plate", linear_to_srgb8(passes["Plate"][..., :3])),
                      ("CG", linear_to_srgb8(passes["CG"][..., :3])),
                      ("shadows (ratio)", linear_to_srgb8(np.clip(passes["Shadows"][..., :3], 0, 1))),

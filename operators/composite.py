@@ -335,7 +335,7 @@ classes = (PLATELIGHT_OT_setup_composite,)
 
 def add_pass_outputs(scene, directory):
     """Also write the group's CG and Shadows outputs and the plate as float EXRs into ``directory``
-    (one file per pass and frame: <pass><frame>.exr); used by the demo and the tests."""
+    (one file per pass; pass_output_path says which); used by the demo and the tests."""
     tree = compat.compositor_tree(scene)
     diff = tree.nodes["PlateLight Differential"]
     node = tree.nodes.get("PlateLight Passes") or tree.nodes.new("CompositorNodeOutputFile")
@@ -350,3 +350,9 @@ def add_pass_outputs(scene, directory):
     tree.links.new(diff.outputs["Shadows"], node.inputs["Shadows"])
     tree.links.new(tree.nodes["Plate"].outputs["Image"], node.inputs["Plate"])
     return node
+
+
+def pass_output_path(scene, directory, name):
+    """The file add_pass_outputs' pass ``name`` ("CG", "Shadows", "Plate") is written to when the
+    scene's current frame is rendered."""
+    return compat.file_output_path(directory, name, scene.frame_current)

@@ -91,7 +91,8 @@ def render(bpy, scene, path):
 def render_with_passes(bpy, scene, folder):
     ops_module("composite").add_pass_outputs(scene, str(folder) + "/")
     out = render(bpy, scene, folder / "composite.exr")
-    return out, {n: read_exr(folder / f"{n}.exr", "RGBA") for n in ("CG", "Shadows")}
+    path = ops_module("composite").pass_output_path
+    return out, {n: read_exr(path(scene, str(folder), n), "RGBA") for n in ("CG", "Shadows")}
 
 
 def ground_points(bpy, scene):
