@@ -6,12 +6,12 @@ This file must import without Blender (the engine in ``addon/`` is used from the
 
 # Registration order matters: property groups before the panels and operators that use them.
 _BPY_MODULES = (
-    "addon.ui.properties",
-    "addon.ui.preferences",
+    "ui.properties",
+    "ui.preferences",
     "operators",
-    "addon.ui.material_panel",
-    "addon.ui.panels",
-    "addon.ui.composite_panel",
+    "ui.material_panel",
+    "ui.panels",
+    "ui.composite_panel",
 )
 
 

@@ -1,7 +1,7 @@
-"""`python -m platelight ...`: the command-line interface (see addon/cli.py)."""
+"""`python -m platelight ...`: the command-line interface (see cli.py)."""
 import sys
 
-from .addon.cli import main
+from .cli import main
 
 code = main()
 if "bpy" in sys.modules:        # a subcommand ran Blender: its version may need another exit

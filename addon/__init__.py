@@ -1,5 +1,7 @@
-"""PlateLight's engine: everything here imports and runs without Blender (numpy, OpenEXR, OpenCV).
+"""PlateLight's engine: everything here imports and runs without Blender (numpy, OpenEXR, OpenCV),
+and imports nothing from the layers above it (tests/test_layers.py checks both).
 
-Blender glue lives in ``addon/ui`` (properties, panels, preferences), ``operators/`` and
-``node_groups/``; those are the only places that import ``bpy``.
+Blender's side lives beside it: ``ui/`` (properties, panels, preferences, registration),
+``operators/`` (one per user action), ``node_groups/`` (node builders) and ``drivers/`` (bpy
+scripts run in headless Blender); ``cli.py`` is the command line over engine and drivers.
 """

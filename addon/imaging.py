@@ -1,4 +1,5 @@
-"""Display helpers: HDR → 8-bit sRGB previews and labelled contact sheets (OpenCV for PNG)."""
+"""Display helpers: the sRGB transfer curve both ways, HDR → 8-bit sRGB previews and labelled
+contact sheets (OpenCV for PNG)."""
 from __future__ import annotations
 
 import os
@@ -25,6 +26,15 @@ def reinhard(image: np.ndarray, exposure: float = 1.0, white: float | None = Non
     mapped = lum / (1.0 + lum) if white is None else lum * (1 + lum / white ** 2) / (1.0 + lum)
     scale = np.where(lum > 0, mapped / np.maximum(lum, 1e-12), 0.0)
     return np.clip(rgb * scale[..., None], 0, 1)
+
+
+def srgb_to_linear(values: np.ndarray) -> np.ndarray:
+    """Decode the sRGB transfer curve (values in 0..1; the dtype of ``values`` is kept)."""
+    return np.where(values <= 0.04045, values / 12.92, ((np.maximum(values, 0.04045) + 0.055) / 1.055) ** 2.4)
+
+
+# 8-bit sRGB code -> linear light, scaled to 0..255 (float32): a lookup table for whole images
+SRGB8_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32) * 255.0
 
 
 def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:

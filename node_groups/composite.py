@@ -21,8 +21,8 @@ The builder is idempotent: re-running it rebuilds the same group in place (users
 import bpy
 
 from .. import compat
+from ..addon import names
 
-GROUP_NAME = "PlateLight Differential"
 RATIO_EPSILON = 1e-6
 
 # name, socket type, default, (min, max), description
@@ -129,9 +129,9 @@ def _grain(nodes, links, inp, cg):
 
 def build_differential_group():
     """Create or rebuild the "PlateLight Differential" compositor group; returns it."""
-    tree = bpy.data.node_groups.get(GROUP_NAME)
+    tree = bpy.data.node_groups.get(names.DIFFERENTIAL_GROUP)
     if tree is None or tree.bl_idname != "CompositorNodeTree":
-        tree = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
+        tree = bpy.data.node_groups.new(names.DIFFERENTIAL_GROUP, "CompositorNodeTree")
     tree.nodes.clear()
     _rebuild_interface(tree)
     nodes, links = tree.nodes, tree.links

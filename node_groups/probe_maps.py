@@ -15,12 +15,12 @@ import os
 
 import bpy
 
+from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER
 from ..addon.ibl.maps import MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
 
-GROUP_PREFIX = "PlateLight Probe "
 FOLDER_KEY = "platelight_probe_dir"
 VERSION = 1
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
@@ -47,7 +47,7 @@ def ensure_probe_group(folder: str, label: str | None = None):
         folder_name = os.path.basename(os.path.normpath(key))
         # The world's maps are shared by every world-only object: not named after the first one.
         label = "World" if folder_name == WORLD_FOLDER else (label or folder_name or "World")
-        tree = bpy.data.node_groups.new(GROUP_PREFIX + label, "ShaderNodeTree")
+        tree = bpy.data.node_groups.new(names.PROBE_GROUP_PREFIX + label, "ShaderNodeTree")
         tree[FOLDER_KEY] = key
     if tree.get(VERSION_KEY) != VERSION or len(tree.nodes) <= 2:
         sync_interface(tree, [("OUTPUT", n, t, {}) for n, t in OUTPUTS]

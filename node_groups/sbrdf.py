@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import bpy
 
+from ..addon import names
 from ..addon.material.params import PARAMETERS
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 
-GROUP_NAME = "PlateLight SBRDF"
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
 VERSION = 2  # 2: Paper Falloff input (existing instances upgraded with 1 = their old look)
 PHI_MIN = 1.0e-4
@@ -67,12 +67,12 @@ def _interface():
 
 def ensure_sbrdf_group():
     """Return the "PlateLight SBRDF" group, building it or upgrading an older version in place."""
-    tree = bpy.data.node_groups.get(GROUP_NAME)
+    tree = bpy.data.node_groups.get(names.SBRDF_GROUP)
     if tree is not None and tree.bl_idname != "ShaderNodeTree":
-        tree.name = GROUP_NAME + " (not a shader group)"
+        tree.name = names.SBRDF_GROUP + " (not a shader group)"
         tree = None
     if tree is None:
-        tree = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+        tree = bpy.data.node_groups.new(names.SBRDF_GROUP, "ShaderNodeTree")
     elif tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2:
         return tree
     old_version = tree.get(VERSION_KEY) if len(tree.nodes) > 2 else None

@@ -11,15 +11,14 @@ import os
 import bpy
 
 from .. import compat
+from ..addon import names
 from ..addon.bake.layout import DEFAULT_MAPS_DIR, WORLD_FOLDER, object_maps_dir
 from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS, SBRDFParams
 from ..addon.material.presets import preset_params
 from . import probe_maps
-from .sbrdf import GROUP_NAME, LOOKUP_SOCKETS, ensure_sbrdf_group
+from .sbrdf import LOOKUP_SOCKETS, ensure_sbrdf_group
 
-SBRDF_NODE = "PlateLight SBRDF"
-PROBE_NODE = "PlateLight Probe"
 WORLD_SUBDIR = WORLD_FOLDER          # the bake writes the world's maps there
 
 
@@ -27,13 +26,13 @@ def sbrdf_node(material):
     """The material's PlateLight SBRDF group node, or None."""
     if material is None or material.node_tree is None:
         return None
-    node = material.node_tree.nodes.get(SBRDF_NODE)
+    node = material.node_tree.nodes.get(names.SBRDF_GROUP)
     if node is not None and getattr(node, "node_tree", None) is not None \
-            and node.node_tree.name == GROUP_NAME:
+            and node.node_tree.name == names.SBRDF_GROUP:
         return node
     for node in material.node_tree.nodes:
         if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None \
-                and node.node_tree.name == GROUP_NAME:
+                and node.node_tree.name == names.SBRDF_GROUP:
             return node
     return None
 
@@ -41,7 +40,7 @@ def sbrdf_node(material):
 def probe_node(material):
     if material is None or material.node_tree is None:
         return None
-    return material.node_tree.nodes.get(PROBE_NODE)
+    return material.node_tree.nodes.get(names.PROBE_NODE)
 
 
 def read_params(material) -> SBRDFParams:
@@ -89,7 +88,7 @@ def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | 
     tree.nodes.clear()
     group = tree.nodes.new("ShaderNodeGroup")
     group.node_tree = ensure_sbrdf_group()
-    group.name = group.label = SBRDF_NODE
+    group.name = group.label = names.SBRDF_GROUP
     group.location = (-400, 0)
     group.width = 240
     out = tree.nodes.new("ShaderNodeOutputMaterial")
@@ -106,7 +105,7 @@ def bind_probe(material, probe_dir: str, label: str | None = None):
     node = probe_node(material)
     if node is None:
         node = tree.nodes.new("ShaderNodeGroup")
-        node.name = node.label = PROBE_NODE
+        node.name = node.label = names.PROBE_NODE
         node.location = (0, 0)
     node.node_tree = probe_maps.ensure_probe_group(probe_dir, label)
     source = sbrdf_node(material)

@@ -10,6 +10,7 @@ import tempfile
 import bpy
 
 from .. import compat
+from ..addon import names
 from ..addon.exr_io import read_exr
 from ..addon.ibl.maps import compute_maps, write_maps
 from ..addon.material.presets import preset_label, preset_names
@@ -30,8 +31,8 @@ def render_preset_row(out_png: str, hdri: str | None = None, presets=None,
     maps_dir = tempfile.mkdtemp(prefix="platelight-presets-")
     write_maps(maps_dir, compute_maps(read_exr(hdri)).maps)
 
-    scene = bpy.data.scenes.new("PlateLight Presets")
-    world = compat.new_world("PlateLight Presets")
+    scene = bpy.data.scenes.new(names.PRESETS_SCENE)
+    world = compat.new_world(names.PRESETS_SCENE)
     scene.world = world
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdri, check_existing=True)
@@ -47,10 +48,10 @@ def render_preset_row(out_png: str, hdri: str | None = None, presets=None,
     scene.render.filepath = os.path.abspath(out_png)
 
     created = [world]
-    cam_data = bpy.data.cameras.new("PlateLight Presets")
+    cam_data = bpy.data.cameras.new(names.PRESETS_SCENE)
     cam_data.type = "ORTHO"
     cam_data.ortho_scale = 2.4 * len(presets)
-    cam = bpy.data.objects.new("PlateLight Presets Camera", cam_data)
+    cam = bpy.data.objects.new(names.PRESETS_CAMERA, cam_data)
     cam.location = (0.0, -10.0, 0.0)
     cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
     scene.collection.objects.link(cam)

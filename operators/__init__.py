@@ -10,7 +10,7 @@ def _load():
 
 
 def register():
-    from ..addon.ui.registration import register_classes
+    from ..ui.registration import register_classes
 
     for module in _load():
         register_classes(module.classes)
@@ -19,7 +19,7 @@ def register():
 
 
 def unregister():
-    from ..addon.ui.registration import unregister_classes
+    from ..ui.registration import unregister_classes
 
     for module in reversed(_load()):
         if hasattr(module, "unregister_extra"):

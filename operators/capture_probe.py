@@ -6,10 +6,9 @@ import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
+from ..addon import names
 from .common import NeedsScene
 
-ENV_NODE_NAME = "PlateLight Probe"
-WORLD_NAME = "PlateLight World"
 
 
 def _numbers(text: str, what: str, count=None):
@@ -82,7 +81,9 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             card = _numbers(self.grey_card, "grey card box", 4) if self.grey_card.strip() else None
             align, intrinsics = None, None
             if self.align_marker_size > 0:
-                from ..addon.capture.tracking import Intrinsics, MarkerTarget, read_image
+                from ..addon.capture.intrinsics import Intrinsics
+                from ..addon.capture.targets import MarkerTarget
+                from ..addon.footage import read_image
 
                 align = MarkerTarget("DICT_4X4_50", self.align_marker_size)
                 if os.path.isfile(paths[0]):
@@ -112,17 +113,17 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
         scene = context.scene
         world = scene.world
         if world is None:
-            world = compat.new_world(WORLD_NAME)
+            world = compat.new_world(names.WORLD)
             scene.world = world
         nt = compat.node_tree(world)      # a 4.5 world made without nodes gets them
         background = next((n for n in nt.nodes if n.type == "BACKGROUND"), None) or nt.nodes.new("ShaderNodeBackground")
         output = next((n for n in nt.nodes if n.type == "OUTPUT_WORLD"), None) or nt.nodes.new("ShaderNodeOutputWorld")
         if not background.outputs["Background"].links:
             nt.links.new(background.outputs["Background"], output.inputs["Surface"])
-        env = nt.nodes.get(ENV_NODE_NAME)
+        env = nt.nodes.get(names.WORLD_PROBE_NODE)
         if env is None:
             env = nt.nodes.new("ShaderNodeTexEnvironment")
-            env.name = env.label = ENV_NODE_NAME
+            env.name = env.label = names.WORLD_PROBE_NODE
             env.location = (background.location.x - 300, background.location.y)
         image = bpy.data.images.load(path, check_existing=True)
         image.reload()

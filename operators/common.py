@@ -1,14 +1,12 @@
 """Small helpers shared by PlateLight's operators (bpy)."""
 import bpy
 
-PLATE_IMAGE_NAME = "PlateLight Plate"
-# On the plate image: file frame number = scene frame + this (a sequence may start at 1001).
-PLATE_FRAME_OFFSET_KEY = "platelight_frame_offset"
+from ..addon import names
 
 
 def find_plate_image(scene):
     """The plate: the image set up by platelight.setup_plate, else the camera's background image."""
-    image = bpy.data.images.get(PLATE_IMAGE_NAME)
+    image = bpy.data.images.get(names.PLATE_IMAGE)
     if image is not None:
         return image
     camera = scene.camera
@@ -17,6 +15,25 @@ def find_plate_image(scene):
             if background.source == "IMAGE" and background.image is not None:
                 return background.image
     return None
+
+
+def set_plate_colour_management(scene):
+    """Plates pass through unchanged: no view transform, look, exposure or gamma."""
+    view = scene.view_settings
+    view.view_transform = "Standard"
+    view.look = "None"
+    view.exposure = 0.0
+    view.gamma = 1.0
+    view.use_curve_mapping = False
+    scene.render.dither_intensity = 0.0  # dither noise would change 8-bit plates
+    scene.sequencer_colorspace_settings.name = "Linear Rec.709"
+
+
+def addon_preferences(context):
+    """PlateLight's add-on preferences (ui/preferences.py), or None when it is not enabled as an
+    add-on (a script that registered the classes itself)."""
+    addon = context.preferences.addons.get(__package__.rsplit(".", 1)[0])
+    return addon.preferences if addon is not None else None
 
 
 class NeedsScene:

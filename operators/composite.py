@@ -20,16 +20,10 @@ The plate passes unchanged: Standard view transform, no look, exposure 0, gamma 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
-from .. import compat
-from ..node_groups.composite import build_differential_group
-from .common import PLATE_FRAME_OFFSET_KEY, find_plate_image
+from ..addon import names
+from ..node_groups.compositor_tree import build_compositor_tree
+from .common import find_plate_image, set_plate_colour_management
 
-TREE_NAME = "PlateLight Composite"
-CG_COLLECTION = "PlateLight CG"
-PHANTOM_COLLECTION = "PlateLight Phantoms"
-LAYER_CG = "PlateLight CG"
-LAYER_LOCAL = "PlateLight Local"
-LAYER_WITHOUT = "PlateLight Local Without"
 RENDERABLE = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 
 
@@ -87,130 +81,6 @@ def _configure_layer(layer, cg_coll, phantom_coll, cg_state, phantom_holdout):
     ph.indirect_only = False
     # other collections stay as they are: after the move they hold only lights, cameras,
     # empties and objects hidden from render, and the lights must keep lighting every layer
-
-
-def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
-    """The scene's compositor tree (rebuilt in place): plate + render layers -> group -> output."""
-    group = build_differential_group()
-    tree = compat.new_compositor_tree(scene, TREE_NAME)
-    nodes, links = tree.nodes, tree.links
-
-    plate = nodes.new("CompositorNodeImage")
-    plate.name = plate.label = "Plate"
-    plate.image = plate_image
-    plate.location = (-600, 300)
-    if plate_image.source in {"SEQUENCE", "MOVIE"}:
-        plate.frame_duration = max(1, scene.frame_end - scene.frame_start + 1)
-        plate.frame_start = scene.frame_start
-        plate.frame_offset = int(plate_image.get(PLATE_FRAME_OFFSET_KEY, 0))
-        plate.use_auto_refresh = True
-    diff = nodes.new("CompositorNodeGroup")
-    diff.name = diff.label = "PlateLight Differential"
-    diff.node_tree = group
-    diff.location = (0, 0)
-    diff.inputs["Ratio Form"].default_value = 1.0 if ratio_form else 0.0
-    diff.inputs["Shadow Clamp"].default_value = shadow_clamp
-    links.new(plate.outputs["Image"], diff.inputs["Plate"])
-
-    cg = nodes.new("CompositorNodeRLayers")
-    cg.name = cg.label = LAYER_CG
-    cg.scene = scene
-    cg.layer = LAYER_CG
-    cg.location = (-600, 0)
-
-    def equal_everywhere(socket_a, socket_b_or_value, location):
-        """A factor that is 1 where all RGB channels of a equal b (a socket or a number)."""
-        x, y = location
-        sep_a = nodes.new("CompositorNodeSeparateColor")
-        sep_a.location = (x, y)
-        links.new(socket_a, sep_a.inputs["Image"])
-        sep_b = None
-        if isinstance(socket_b_or_value, bpy.types.NodeSocket):
-            sep_b = nodes.new("CompositorNodeSeparateColor")
-            sep_b.location = (x, y - 150)
-            links.new(socket_b_or_value, sep_b.inputs["Image"])
-        result = None
-        for k, channel in enumerate(("Red", "Green", "Blue")):
-            cmp = compat.compositor_math(nodes, "COMPARE")
-            cmp.location = (x + 150, y - 60 * k)
-            links.new(sep_a.outputs[channel], cmp.inputs[0])
-            if sep_b is not None:
-                links.new(sep_b.outputs[channel], cmp.inputs[1])
-            else:
-                cmp.inputs[1].default_value = socket_b_or_value
-            cmp.inputs[2].default_value = 0.0
-            if result is None:
-                result = cmp.outputs[0]
-            else:
-                both = compat.compositor_math(nodes, "MULTIPLY")
-                both.location = (x + 300, y - 60 * k)
-                links.new(result, both.inputs[0])
-                links.new(cmp.outputs[0], both.inputs[1])
-                result = both.outputs[0]
-        return result
-
-    def denoised_unless(socket, keep_factor, location):
-        """OIDN on ``socket``, except where ``keep_factor`` is 1: there the raw pixel is kept,
-        so denoising never touches pixels the CG does not reach (the plate stays exact)."""
-        x, y = location
-        node = nodes.new("CompositorNodeDenoise")
-        node.location = (x, y)
-        links.new(socket, node.inputs["Image"])
-        mix = compat.compositor_mix(nodes)
-        mix.node.location = (x + 200, y)
-        links.new(keep_factor, mix.factor)
-        links.new(node.outputs["Image"], mix.a)
-        links.new(socket, mix.b)
-        return mix.result
-
-    cg_image = cg.outputs["Image"]
-    if denoise_shadows:
-        alpha_zero = compat.compositor_math(nodes, "COMPARE")
-        alpha_zero.location = (-450, 150)
-        links.new(cg.outputs["Alpha"], alpha_zero.inputs[0])
-        alpha_zero.inputs[1].default_value = 0.0
-        alpha_zero.inputs[2].default_value = 0.0
-        cg_image = denoised_unless(cg_image, alpha_zero.outputs[0], (-300, 100))
-    links.new(cg_image, diff.inputs["CG"])
-    if method == "CATCHER":
-        catcher = cg.outputs["Shadow Catcher"]
-        if denoise_shadows:
-            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, -250)), (-300, -200))
-        links.new(catcher, diff.inputs["With"])
-    else:
-        local = {}
-        for name, socket, y in ((LAYER_LOCAL, "With", -300), (LAYER_WITHOUT, "Without", -600)):
-            node = nodes.new("CompositorNodeRLayers")
-            node.name = node.label = name
-            node.scene = scene
-            node.layer = name
-            node.location = (-600, y)
-            local[socket] = node.outputs["Image"]
-        if denoise_shadows:
-            same = equal_everywhere(local["With"], local["Without"], (-900, -450))
-            local = {k: denoised_unless(v, same, (-300, -300 if k == "With" else -600)) for k, v in local.items()}
-        for socket, value in local.items():
-            links.new(value, diff.inputs[socket])
-    out = compat.composite_output(tree)
-    out.node.location = (400, 0)
-    links.new(diff.outputs["Image"], out)
-    scene.render.use_compositing = True
-    from .grain import wire_grain  # grain matched earlier (platelight.match_grain) stays wired
-
-    wire_grain(scene, tree)
-    return tree
-
-
-def set_plate_colour_management(scene):
-    """Plates pass through unchanged: no view transform, look, exposure or gamma."""
-    view = scene.view_settings
-    view.view_transform = "Standard"
-    view.look = "None"
-    view.exposure = 0.0
-    view.gamma = 1.0
-    view.use_curve_mapping = False
-    scene.render.dither_intensity = 0.0  # dither noise would change 8-bit plates
-    scene.sequencer_colorspace_settings.name = "Linear Rec.709"
 
 
 class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
@@ -290,8 +160,8 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         scene.cycles.use_denoising = False
         scene.cycles.use_adaptive_sampling = False
         set_plate_colour_management(scene)
-        cg_coll = _collection(scene, CG_COLLECTION)
-        phantom_coll = _collection(scene, PHANTOM_COLLECTION)
+        cg_coll = _collection(scene, names.CG_COLLECTION)
+        phantom_coll = _collection(scene, names.PHANTOM_COLLECTION)
         _move_into(cg, cg_coll)
         _move_into(phantoms, phantom_coll)
         for ob in cg:
@@ -301,18 +171,18 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             ob.is_shadow_catcher = self.method == "CATCHER"
             ob.is_holdout = False
 
-        ours = {LAYER_CG} if self.method == "CATCHER" else {LAYER_CG, LAYER_LOCAL, LAYER_WITHOUT}
+        ours = {names.LAYER_CG} if self.method == "CATCHER" else {names.LAYER_CG, names.LAYER_LOCAL, names.LAYER_WITHOUT}
         for layer in scene.view_layers:
             if layer.name not in ours:
                 layer.use = False
-        cg_layer = _view_layer(scene, LAYER_CG)
+        cg_layer = _view_layer(scene, names.LAYER_CG)
         cg_layer.cycles.use_pass_shadow_catcher = self.method == "CATCHER"
         _configure_layer(cg_layer, cg_coll, phantom_coll, "visible", self.method != "CATCHER")
         if self.method == "DIFFERENTIAL":
-            _configure_layer(_view_layer(scene, LAYER_LOCAL), cg_coll, phantom_coll, "indirect", False)
-            _configure_layer(_view_layer(scene, LAYER_WITHOUT), cg_coll, phantom_coll, "excluded", False)
+            _configure_layer(_view_layer(scene, names.LAYER_LOCAL), cg_coll, phantom_coll, "indirect", False)
+            _configure_layer(_view_layer(scene, names.LAYER_WITHOUT), cg_coll, phantom_coll, "excluded", False)
         else:
-            for name in (LAYER_LOCAL, LAYER_WITHOUT):
+            for name in (names.LAYER_LOCAL, names.LAYER_WITHOUT):
                 if name in scene.view_layers:
                     scene.view_layers[name].use = False
         if context.window is not None:
@@ -331,28 +201,3 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
 
 
 classes = (PLATELIGHT_OT_setup_composite,)
-
-
-def add_pass_outputs(scene, directory):
-    """Also write the group's CG and Shadows outputs and the plate as float EXRs into ``directory``
-    (one file per pass; pass_output_path says which); used by the demo and the tests."""
-    tree = compat.compositor_tree(scene)
-    diff = tree.nodes["PlateLight Differential"]
-    node = tree.nodes.get("PlateLight Passes") or tree.nodes.new("CompositorNodeOutputFile")
-    node.name = node.label = "PlateLight Passes"
-    node.location = (400, -300)
-    compat.set_still_image(node.format)
-    node.format.file_format = "OPEN_EXR"
-    node.format.color_depth = "32"
-    node.format.color_mode = "RGBA"
-    compat.set_file_output(node, directory, ("CG", "Shadows", "Plate"))
-    tree.links.new(diff.outputs["CG"], node.inputs["CG"])
-    tree.links.new(diff.outputs["Shadows"], node.inputs["Shadows"])
-    tree.links.new(tree.nodes["Plate"].outputs["Image"], node.inputs["Plate"])
-    return node
-
-
-def pass_output_path(scene, directory, name):
-    """The file add_pass_outputs' pass ``name`` ("CG", "Shadows", "Plate") is written to when the
-    scene's current frame is rendered."""
-    return compat.file_output_path(directory, name, scene.frame_current)

@@ -18,14 +18,11 @@ import tempfile
 import bpy
 from bpy.props import IntProperty
 
-from .. import compat
-from .common import PLATE_FRAME_OFFSET_KEY, NeedsScene, find_plate_image
-from .plate import sequence_frame_path
+from ..addon import names
+from ..addon.footage import sequence_frame_path
+from ..node_groups.compositor_tree import differential_node, wire_grain
+from .common import NeedsScene, find_plate_image
 
-GRAIN_IMAGE = "PlateLight Grain"
-GRAIN_NODE = "PlateLight Grain"
-GROUP_NODE = "PlateLight Differential"
-SETTINGS_KEY = "platelight_grain"
 _GRAIN_FILE = re.compile(r"^grain_(\d+)\.exr$")
 
 
@@ -44,12 +41,12 @@ def plate_frame_pixels(image, scene):
     """The plate's pixels at the scene's current frame as float32 linear RGB (numpy)."""
     import cv2
 
-    from ..addon.capture.tracking import read_image
     from ..addon.compositing.grain import linear_plate
+    from ..addon.footage import read_image
     from ..addon.errors import PlateLightError
 
     path = bpy.path.abspath(image.filepath, library=image.library)
-    file_frame = scene.frame_current + int(image.get(PLATE_FRAME_OFFSET_KEY, 0))
+    file_frame = scene.frame_current + int(image.get(names.PLATE_FRAME_OFFSET_KEY, 0))
     srgb = image.colorspace_settings.name == "sRGB"
     if image.source == "MOVIE":
         cap = cv2.VideoCapture(path)
@@ -66,44 +63,6 @@ def plate_frame_pixels(image, scene):
     if not os.path.isfile(path):
         raise PlateLightError(f"The plate file for frame {scene.frame_current} is missing: {path}")
     return linear_plate(read_image(path), srgb)
-
-
-def differential_node(scene):
-    tree = compat.compositor_tree(scene)
-    if tree is None:
-        return None
-    node = tree.nodes.get(GROUP_NODE)
-    if node is None or node.bl_idname != "CompositorNodeGroup" or node.node_tree is None:
-        return None
-    return node
-
-
-def wire_grain(scene, tree=None):
-    """Connect the grain image (if match_grain made one) to the Differential group of ``tree``
-    (the scene's compositor tree) with its stored settings. Returns the image node or None."""
-    image = bpy.data.images.get(GRAIN_IMAGE)
-    settings = image.get(SETTINGS_KEY) if image is not None else None
-    tree = tree or compat.compositor_tree(scene)
-    diff = tree.nodes.get(GROUP_NODE) if tree is not None else None
-    if settings is None or diff is None:
-        return None
-    node = tree.nodes.get(GRAIN_NODE)
-    if node is None or node.bl_idname != "CompositorNodeImage":
-        node = tree.nodes.new("CompositorNodeImage")
-        node.name = node.label = GRAIN_NODE
-    node.location = (diff.location.x - 600, diff.location.y + 400)
-    node.image = image
-    if image.source == "SEQUENCE":
-        # files are numbered by scene frame: file number = (frame - start + 1) + offset = frame
-        node.frame_start = scene.frame_start
-        node.frame_offset = scene.frame_start - 1
-        node.frame_duration = max(1, scene.frame_end - scene.frame_start + 1)
-        node.use_auto_refresh = True
-    tree.links.new(node.outputs["Image"], diff.inputs["Grain"])
-    diff.inputs["Grain Amount"].default_value = float(settings["amount"])
-    diff.inputs["Grain Level"].default_value = (*settings["level"], 1.0)
-    diff.inputs["Grain Response"].default_value = (*settings["response"], 1.0)
-    return node
 
 
 def _stale_files(folder, frames):
@@ -169,15 +128,15 @@ class PLATELIGHT_OT_match_grain(NeedsScene, bpy.types.Operator):
         # --- the image sequence, updated in place, and its wiring
         first = os.path.join(folder, f"grain_{frames[0]:04d}.exr")
         stored = bpy.path.relpath(first) if bpy.data.filepath else first
-        image = bpy.data.images.get(GRAIN_IMAGE)
+        image = bpy.data.images.get(names.GRAIN_IMAGE)
         if image is None:
             image = bpy.data.images.load(first, check_existing=False)
-            image.name = GRAIN_IMAGE
+            image.name = names.GRAIN_IMAGE
         image.filepath = stored
         image.source = "SEQUENCE" if len(frames) > 1 else "FILE"
         image.colorspace_settings.name = "Linear Rec.709"
         image.reload()
-        image[SETTINGS_KEY] = {"amount": 1.0, "level": [float(v) for v in stats.level],
+        image[names.GRAIN_SETTINGS_KEY] = {"amount": 1.0, "level": [float(v) for v in stats.level],
                                "response": [float(v) for v in stats.response]}
         wire_grain(scene)
         sigma = ", ".join(f"{s:.4g}" for s in stats.sigma)

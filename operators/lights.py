@@ -17,16 +17,16 @@ import tempfile
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty
+
+from ..addon import names
 from mathutils import Vector
 
 from .world_environment import SUNLESS_OF_KEY, probe_image, world_image
 
-LIGHTS_COLLECTION = "PlateLight Lights"
-
 
 def create_sun_lights(scene, lights, name_prefix="PlateLight"):
     """Replace the contents of the "PlateLight Lights" collection by sun lamps for ``lights``."""
-    coll = bpy.data.collections.get(LIGHTS_COLLECTION) or bpy.data.collections.new(LIGHTS_COLLECTION)
+    coll = bpy.data.collections.get(names.LIGHTS_COLLECTION) or bpy.data.collections.new(names.LIGHTS_COLLECTION)
     if coll.name not in scene.collection.children:
         scene.collection.children.link(coll)
     for ob in list(coll.objects):

@@ -26,7 +26,7 @@ def _can_hold_materials(obj) -> bool:
 def _maps_not_baked(obj, folder):
     """Maps the object's materials now read that its probe folder lacks ([] when all there)."""
     from ..node_groups.probe_maps import missing_maps
-    from .probe_inputs import maps_for
+    from .bake.inputs import maps_for
 
     if not obj.platelight.probe_dir or folder != obj.platelight.probe_dir:
         return []                      # no own bake yet: the status line already says so

@@ -6,64 +6,14 @@ Colour spaces are explicit: float files (EXR, HDR) are scene-linear, 8/16-bit fi
 with the Standard view transform an sRGB plate comes out as it went in.
 """
 import os
-import re
 
 import bpy
 from bpy.props import BoolProperty, FloatProperty, StringProperty
 
-from .common import PLATE_FRAME_OFFSET_KEY, PLATE_IMAGE_NAME, NeedsScene
-from .composite import set_plate_colour_management
-
-MOVIE_EXTENSIONS = {".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".ogv"}
-# A numbered file of an image sequence: prefix, frame digits, extension.
-NUMBERED_FILE = re.compile(r"^(.*?)(\d+)(\.[A-Za-z0-9]+)$")
-
-
-class PlateError(Exception):
-    """A problem with the plate, worded for the user."""
-
-
-def scan_sequence(path):
-    """(first, last, count) of the numbered sequence ``path`` belongs to; raises PlateError for
-    missing frames. A file without a number is a single still (1, 1, 1)."""
-    folder, name = os.path.split(path)
-    match = NUMBERED_FILE.match(name)
-    if not match:
-        return 1, 1, 1
-    prefix, digits, ext = match.groups()
-    pattern = re.compile(re.escape(prefix) + r"(\d+)" + re.escape(ext) + "$")
-    numbers = sorted(int(m.group(1)) for m in map(pattern.match, os.listdir(folder or ".")) if m)
-    missing = sorted(set(range(numbers[0], numbers[-1] + 1)) - set(numbers))
-    if missing:
-        shown = ", ".join(map(str, missing[:8])) + (" ..." if len(missing) > 8 else "")
-        raise PlateError(f"The plate sequence {prefix}#{ext} has {len(missing)} missing frame(s) "
-                         f"({shown}); render or copy them before using it as a plate.")
-    return numbers[0], numbers[-1], len(numbers)
-
-
-def sequence_frame_path(path, frame):
-    """The file of frame ``frame`` in the numbered sequence ``path`` belongs to (``path`` itself
-    for a file without a number)."""
-    folder, name = os.path.split(path)
-    match = NUMBERED_FILE.match(name)
-    if not match:
-        return path
-    prefix, digits, ext = match.groups()
-    return os.path.join(folder, f"{prefix}{frame:0{len(digits)}d}{ext}")
-
-
-def frame_rate_pair(fps):
-    """Blender's (fps, fps_base) for a frame rate: integer rates exactly, NTSC rates (23.976,
-    29.97, 59.94: N/1.001) as (N, 1.001) like Blender's own presets, anything else (N, N/fps).
-    Movie containers store rates as float32 (23.97599983), so they are snapped to these."""
-    whole = round(fps)
-    if whole >= 1 and abs(fps - whole) < 1e-3:
-        return whole, 1.0
-    ntsc = round(fps * 1.001)
-    if ntsc >= 1 and abs(fps * 1.001 - ntsc) < 1e-3:
-        return ntsc, 1.001
-    whole = max(1, whole)
-    return whole, whole / fps
+from ..addon import names
+from ..addon.errors import PlateLightError
+from ..addon.footage import MOVIE_EXTENSIONS, frame_rate_pair, scan_sequence
+from .common import NeedsScene, set_plate_colour_management
 
 
 def _camera_is_animated(camera):
@@ -103,7 +53,7 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
             finally:
                 bpy.data.movieclips.remove(clip)
             if count < 1 or size[0] == 0:
-                raise PlateError(f"Blender cannot read frames from the movie {path}.")
+                raise PlateLightError(f"Blender cannot read frames from the movie {path}.")
             source, first = "MOVIE", 1
         else:
             first, _, count = scan_sequence(path)
@@ -111,14 +61,14 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
         try:
             image = bpy.data.images.load(path, check_existing=False)
         except RuntimeError:
-            raise PlateError(f"Blender cannot read {path} as an image or movie.") from None
+            raise PlateLightError(f"Blender cannot read {path} as an image or movie.") from None
         # read the size as a still first: a sequence reports 0×0 until a frame is shown
         size = tuple(image.size)
         is_float = image.is_float
         image.source = source
         if size[0] == 0 or size[1] == 0:
             bpy.data.images.remove(image)
-            raise PlateError(f"Blender cannot read {path} as an image or movie.")
+            raise PlateLightError(f"Blender cannot read {path} as an image or movie.")
         image.colorspace_settings.name = "Linear Rec.709" if is_float else "sRGB"
         return image, size, first, count, fps
 
@@ -130,7 +80,7 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
             return {"CANCELLED"}
         try:
             image, (width, height), first, count, clip_fps = self._load(path)
-        except PlateError as err:
+        except PlateLightError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
         fps = clip_fps or self.fps or None
@@ -153,12 +103,12 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
             return {"CANCELLED"}
 
         # --- one plate image, updated in place (compositor nodes and backgrounds keep it)
-        old = bpy.data.images.get(PLATE_IMAGE_NAME)
+        old = bpy.data.images.get(names.PLATE_IMAGE)
         if old is not None:
             old.user_remap(image)
             bpy.data.images.remove(old)
-        image.name = PLATE_IMAGE_NAME
-        image[PLATE_FRAME_OFFSET_KEY] = first - 1
+        image.name = names.PLATE_IMAGE
+        image[names.PLATE_FRAME_OFFSET_KEY] = first - 1
         render.resolution_x, render.resolution_y = width, height
         render.resolution_percentage = 100
         render.pixel_aspect_x = render.pixel_aspect_y = 1.0

@@ -6,10 +6,9 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from mathutils import Matrix
 
+from ..addon import names
 from .common import NeedsScene
 
-PLANE_NAME = "PlateLight Marker Plane"
-CAMERA_NAME = "PlateLight Camera"
 
 _DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_5X5_50", "DICT_5X5_100",
                  "DICT_6X6_50", "DICT_6X6_250", "DICT_7X7_50", "DICT_ARUCO_ORIGINAL", "DICT_APRILTAG_36h11")
@@ -69,7 +68,9 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
                           default=0.0, min=0.0, soft_max=10.0)
 
     def execute(self, context):
-        from ..addon.capture.tracking import CharucoTarget, MarkerTarget, load_calibration, track
+        from ..addon.capture.intrinsics import load_calibration
+        from ..addon.capture.targets import CharucoTarget, MarkerTarget
+        from ..addon.capture.tracking import track
         from ..addon.errors import PlateLightError
 
         scene = context.scene
@@ -112,8 +113,8 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         scene = context.scene
         if scene.camera and scene.camera.type == "CAMERA":
             return scene.camera
-        data = bpy.data.cameras.new(CAMERA_NAME)
-        camera = bpy.data.objects.new(CAMERA_NAME, data)
+        data = bpy.data.cameras.new(names.TRACK_CAMERA)
+        camera = bpy.data.objects.new(names.TRACK_CAMERA, data)
         scene.collection.objects.link(camera)
         scene.camera = camera
         return camera
@@ -155,10 +156,10 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         scene = context.scene
         w, h = extent
         verts = [(-w / 2, -h / 2, 0), (w / 2, -h / 2, 0), (w / 2, h / 2, 0), (-w / 2, h / 2, 0)]
-        plane = bpy.data.objects.get(PLANE_NAME)
+        plane = bpy.data.objects.get(names.MARKER_PLANE)
         if plane is None or plane.type != "MESH":
-            mesh = bpy.data.meshes.new(PLANE_NAME)
-            plane = bpy.data.objects.new(PLANE_NAME, mesh)
+            mesh = bpy.data.meshes.new(names.MARKER_PLANE)
+            plane = bpy.data.objects.new(names.MARKER_PLANE, mesh)
         else:
             mesh = plane.data
             mesh.clear_geometry()

@@ -11,8 +11,15 @@ from support import EXT_MODULE
 from support import compat
 
 
-def bake_module():
-    return sys.modules[f"{EXT_MODULE}.operators.bake"]
+def bake_module(part="job"):
+    """operators/bake/<part>.py of the enabled extension (job: ProbeBake, bake_probes;
+    probe_render: the panorama; None: the operators' package)."""
+    return sys.modules[f"{EXT_MODULE}.operators.bake" + (f".{part}" if part else "")]
+
+
+def probe_renders():
+    """Cycles probe renders so far (a cache hit renders nothing)."""
+    return bake_module("probe_render").render_count
 
 
 def new_scene(bpy, tmp_path, *, world_color=(1.0, 1.0, 1.0), env_exr=None, save=True,

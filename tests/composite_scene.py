@@ -89,10 +89,11 @@ def render(bpy, scene, path):
 
 
 def render_with_passes(bpy, scene, folder):
-    ops_module("composite").add_pass_outputs(scene, str(folder) + "/")
+    compositor_tree = importlib.import_module(f"{support.EXT_MODULE}.node_groups.compositor_tree")
+    compositor_tree.add_pass_outputs(scene, str(folder) + "/")
     out = render(bpy, scene, folder / "composite.exr")
-    path = ops_module("composite").pass_output_path
-    return out, {n: read_exr(path(scene, str(folder), n), "RGBA") for n in ("CG", "Shadows")}
+    return out, {n: read_exr(compositor_tree.pass_output_path(scene, str(folder), n), "RGBA")
+                 for n in ("CG", "Shadows")}
 
 
 def ground_points(bpy, scene):

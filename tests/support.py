@@ -12,19 +12,9 @@ import sys
 import tempfile
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-
-
-def _shared_folder() -> pathlib.Path:
-    """../shared beside the checkout; for a git worktree elsewhere, beside the main checkout."""
-    beside = REPO.parent / "shared"
-    if beside.is_dir():
-        return beside
-    common = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--path-format=absolute",
-                             "--git-common-dir"], capture_output=True, text=True).stdout.strip()
-    return pathlib.Path(common).parent.parent / "shared" if common else beside
-
-
-SHARED = _shared_folder()
+# the shared contracts and data: beside the checkout (/work/main) or above a worktree (/work/wt/NAME)
+SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "design.md").is_file()),
+              REPO.parent / "shared")
 GRACE = SHARED / "data" / "probes" / "grace_latlong.exr"
 EXT_MODULE = "bl_ext.dev.platelight"
 

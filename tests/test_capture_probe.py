@@ -259,7 +259,7 @@ def test_probe_aligned_on_a_marker_seen_in_the_photos(tmp_path):
     """A marker on the floor beside the ball gives the photo's camera rotation: the probe comes
     out in the marker's frame although the camera looked down 40 deg and turned 25 deg."""
     from platelight.addon.capture.boards import target_image
-    from platelight.addon.capture.tracking import MarkerTarget
+    from platelight.addon.capture.targets import MarkerTarget
     from test_capture_tracking import warp_target
 
     pitch, yaw = np.radians(-40), 25.0

@@ -11,10 +11,13 @@ import numpy as np
 import pytest
 
 import support
-from platelight.addon.capture import tracking
 from platelight.addon.capture.boards import target_image, write_target
-from platelight.addon.capture.tracking import (CharucoTarget, Intrinsics, MarkerTarget, blender_to_cv_pose,
-                                               cv_pose_to_blender, rotation_error_deg, smooth_poses, track)
+from platelight.addon.capture.detection import Tracker
+from platelight.addon.capture.intrinsics import Intrinsics
+from platelight.addon.capture.poses import blender_to_cv_pose, cv_pose_to_blender, rotation_error_deg
+from platelight.addon.capture.smoothing import smooth_poses
+from platelight.addon.capture.targets import CharucoTarget, MarkerTarget
+from platelight.addon.capture.tracking import track
 from platelight.addon.errors import PlateLightError
 
 W, H, F = 640, 480, 600.0
@@ -89,7 +92,7 @@ def test_marker_corner_order_matches_world_frame():
     target = MarkerTarget("DICT_4X4_50", 0.1)
     tex = target_image(target, dpi=PX_PER_M * 0.0254, margin_m=MARGIN)
     img = warp_target(tex, target.extent, look_at((0, 0, 0.4)))
-    det = tracking.Tracker(target).detect(img)
+    det = Tracker(target).detect(img)
     tl = det.image_points[0]
     assert tl[0] < W / 2 and tl[1] < H / 2                  # upper left of the image
     assert np.allclose(det.object_points[0], [-0.05, 0.05, 0])
@@ -111,7 +114,7 @@ def test_charuco_board_and_printable_image_roundtrip(tmp_path):
     assert tex.shape == (round((0.24 + 0.02) * PX_PER_M), round((0.18 + 0.02) * PX_PER_M))
     truth = look_at((0.15, -0.1, 0.45), roll_deg=-12)
     img = warp_target(tex, target.extent, truth)
-    tracker = tracking.Tracker(target, Intrinsics.from_focal_px(F, W, H))
+    tracker = Tracker(target, Intrinsics.from_focal_px(F, W, H))
     det = tracker.detect(img)
     assert det.kind == "charuco" and len(det.object_points) >= 30
     rvec, tvec, rms = tracker.solve(det)

@@ -6,7 +6,7 @@ import os
 import numpy as np
 
 import support  # noqa: F401
-from platelight.addon import cli_render
+from platelight.addon import render_files
 from platelight.addon.exr_io import write_exr
 
 
@@ -21,31 +21,31 @@ def test_truncated_exr_and_png_are_incomplete(tmp_path):
     png(tmp_path / "a.png", np.random.default_rng(1).integers(0, 256, (40, 60, 3), dtype=np.uint8))
     for name in ("a.exr", "a.png"):
         path = tmp_path / name
-        assert cli_render.is_complete(str(path))
+        assert render_files.is_complete(str(path))
         data = path.read_bytes()
         for cut in (0, 10, len(data) // 2, len(data) - 1):
             path.write_bytes(data[:cut])
-            assert not cli_render.is_complete(str(path)), (name, cut)
-    assert not cli_render.is_complete(str(tmp_path / "missing.exr"))
+            assert not render_files.is_complete(str(path)), (name, cut)
+    assert not render_files.is_complete(str(tmp_path / "missing.exr"))
 
 
 def test_temporary_names_are_hidden_and_found_again(tmp_path):
-    final = cli_render.frame_path(str(tmp_path), "composite", 7, ".exr")
+    final = render_files.frame_path(str(tmp_path), "composite", 7, ".exr")
     assert os.path.basename(final) == "composite_0007.exr"
-    tmp = cli_render.temp_path(final)
+    tmp = render_files.temp_path(final)
     assert os.path.dirname(tmp) == str(tmp_path) and tmp.endswith(".exr")
     assert os.path.basename(tmp).startswith(".composite_0007")
     open(tmp, "wb").close()
-    open(cli_render.temp_path(cli_render.frame_path(str(tmp_path), "composite", 8, ".exr")), "wb").close()
+    open(render_files.temp_path(render_files.frame_path(str(tmp_path), "composite", 8, ".exr")), "wb").close()
     assert glob.glob(str(tmp_path / "composite_*.exr")) == []
-    assert cli_render.stale_temps(final) == [tmp]
+    assert render_files.stale_temps(final) == [tmp]
 
 
 def test_plan_keeps_complete_frames_and_redoes_broken_ones(tmp_path):
     image = np.zeros((4, 8, 4), np.float32)
     for frame in (1, 2, 4):
-        write_exr(cli_render.frame_path(str(tmp_path), "c", frame, ".exr"), image)
+        write_exr(render_files.frame_path(str(tmp_path), "c", frame, ".exr"), image)
     broken = tmp_path / "c_0004.exr"
     broken.write_bytes(broken.read_bytes()[:100])
-    assert cli_render.plan(str(tmp_path), "c", [1, 2, 3, 4], ".exr") == ([3, 4], [1, 2], [4])
-    assert cli_render.plan(str(tmp_path), "c", [1, 2, 3, 4], ".exr", force=True) == ([1, 2, 3, 4], [], [4])
+    assert render_files.plan(str(tmp_path), "c", [1, 2, 3, 4], ".exr") == ([3, 4], [1, 2], [4])
+    assert render_files.plan(str(tmp_path), "c", [1, 2, 3, 4], ".exr", force=True) == ([1, 2, 3, 4], [], [4])

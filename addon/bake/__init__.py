@@ -1,2 +1,2 @@
 """Per-object probe baking, the bpy-free half: frame ranges, content hashes, which maps an
-object needs, camera-frustum culling and where maps live. operators/bake.py is the Blender glue."""
+object needs, camera-frustum culling and where maps live. operators/bake/ is the Blender side."""

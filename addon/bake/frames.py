@@ -38,3 +38,12 @@ def split_frames(frames: list[int], part: int, parts: int) -> list[int]:
     lo = (part - 1) * n // parts
     hi = part * n // parts
     return list(frames[lo:hi])
+
+
+def parse_part(text: str) -> tuple[int, int]:
+    """``"2/4"`` -> (2, 4): the --part flag of the farm commands (bake, render)."""
+    try:
+        part, parts = (int(x) for x in text.split("/"))
+    except ValueError:
+        raise PlateLightError(f"--part must look like 2/4, not {text!r}.") from None
+    return part, parts

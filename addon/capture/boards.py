@@ -7,7 +7,7 @@ import zlib
 import numpy as np
 
 from ..errors import PlateLightError
-from .tracking import CharucoTarget, MarkerTarget
+from .targets import CharucoTarget, MarkerTarget
 
 MM_PER_INCH = 25.4
 PT_PER_INCH = 72.0

@@ -92,7 +92,9 @@ def run(args) -> int:
     camera = camera_from_poses(args.camera_from, args.frame) if args.camera_from else None
     align, intrinsics = None, None
     if args.align_marker is not None:
-        from .tracking import Intrinsics, MarkerTarget, read_image
+        from ..footage import read_image
+        from .intrinsics import Intrinsics
+        from .targets import MarkerTarget
 
         align = MarkerTarget(args.dictionary, args.align_marker)
         if args.focal_px is None and args.focal_mm is None:

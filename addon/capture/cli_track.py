@@ -49,7 +49,7 @@ def add_parser(sub) -> None:
 
 
 def make_target(args):
-    from .tracking import CharucoTarget, MarkerTarget
+    from .targets import CharucoTarget, MarkerTarget
 
     if args.marker_size is None:
         raise PlateLightError("Give the printed marker's side with --marker-size (metres).")
@@ -62,7 +62,8 @@ def make_target(args):
 
 
 def run(args) -> int:
-    from .tracking import load_calibration, track
+    from .intrinsics import load_calibration
+    from .tracking import track
 
     target = make_target(args)
     if args.print_board:

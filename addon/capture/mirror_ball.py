@@ -40,7 +40,7 @@ def find_ball(image: np.ndarray) -> Ball:
     edges, then a least-squares circle fit to sub-pixel edge points along radial profiles."""
     import cv2
 
-    from .tracking import to_gray8
+    from .detection import to_gray8
 
     img = np.asarray(image)
     if np.issubdtype(img.dtype, np.floating):
@@ -56,11 +56,11 @@ def find_ball(image: np.ndarray) -> Ball:
         # gamma space its steepest point slides ~1 px towards the dark side).
         linear = np.clip(lum * np.float32(255.0 / max(np.percentile(few, 99), 1e-12)), 0, 380)
     else:
-        from .tracking import _SRGB_TO_LINEAR
+        from ..imaging import SRGB8_TO_LINEAR
 
         gray8 = to_gray8(img)
         gray = gray8.astype(np.float32)
-        linear = _SRGB_TO_LINEAR[gray8]
+        linear = SRGB8_TO_LINEAR[gray8]
     # Hough on at most ~1000 px (the refinement below restores full-resolution accuracy).
     shrink = max(1, int(np.ceil(max(gray.shape) / 1000)))
     if shrink > 1:

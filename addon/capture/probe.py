@@ -76,7 +76,8 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
 def camera_from_target(images, target, intrinsics) -> np.ndarray:
     """Camera_to_world of the ball photo from a marker/board seen in it: the brackets are tried
     from the middle exposure outwards and the first one where the target tracks is used."""
-    from .tracking import Tracker, cv_pose_to_blender
+    from .detection import Tracker
+    from .poses import cv_pose_to_blender
 
     if intrinsics is None:
         raise PlateLightError("Aligning on a marker needs the camera's focal length (--focal-px or --focal-mm).")

@@ -41,6 +41,7 @@ import math
 import numpy as np
 
 from ..errors import PlateLightError
+from ..imaging import srgb_to_linear
 
 MIN_SIDE = 16                   # smaller plates hold too few pixels for a grain estimate
 MAX_SIDE = 32768                # grain images larger than this are a mistake
@@ -368,5 +369,5 @@ def linear_plate(image: np.ndarray, srgb: bool) -> np.ndarray:
     else:
         rgb = rgb.astype(np.float32)
     if srgb:
-        rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((np.maximum(rgb, 0.04045) + 0.055) / 1.055) ** 2.4)
+        rgb = srgb_to_linear(rgb)
     return np.ascontiguousarray(rgb, dtype=np.float32)

@@ -116,8 +116,8 @@ def main(out_dir: pathlib.Path) -> None:
     scene.platelight.probe_height, scene.platelight.probe_samples = 64, 16
     importance = {}
     for label, limit in (("Cycles' own (1024 columns)", None),
-                         (f"probe cap ({module.PROBE_WORLD_MAP_RESOLUTION} columns)",
-                          module.PROBE_WORLD_MAP_RESOLUTION)):
+                         (f"probe cap ({bake_module('probe_render').PROBE_WORLD_MAP_RESOLUTION} columns)",
+                          bake_module("probe_render").PROBE_WORLD_MAP_RESOLUTION)):
         runs = []
         for _ in range(2):
             job = module.ProbeBake(context, [ball], [1], use_cache=False, cull=False,

@@ -25,8 +25,10 @@ from test_capture_probe import brackets, forward_ball, smooth_env  # noqa: E402
 from test_capture_tracking import look_at, warp_target  # noqa: E402
 from platelight.addon.capture import hdr_merge, mirror_ball  # noqa: E402
 from platelight.addon.capture.boards import target_image  # noqa: E402
-from platelight.addon.capture.tracking import (CharucoTarget, Intrinsics, MarkerTarget,  # noqa: E402
-                                               rotation_error_deg, track)
+from platelight.addon.capture.intrinsics import Intrinsics  # noqa: E402
+from platelight.addon.capture.poses import rotation_error_deg  # noqa: E402
+from platelight.addon.capture.targets import CharucoTarget, MarkerTarget  # noqa: E402
+from platelight.addon.capture.tracking import track  # noqa: E402
 from platelight.addon.ibl.equirect import downsample_area  # noqa: E402
 
 FPS_FRAMES = 40

@@ -6,10 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bake_scenes import (add_plane, add_sphere, angle_deg, bake_module, bright_direction, maps_folder,
+                         new_scene, probe_renders, read_map, scene_snapshot)
 from support import compat
-
-from bake_scenes import (add_plane, add_sphere, angle_deg, bake_module, bright_direction,
-                         maps_folder, new_scene, read_map, scene_snapshot)
 
 
 def bake(bpy, **kwargs):
@@ -75,37 +74,36 @@ def test_unchanged_rebake_is_a_cache_hit_and_moving_rebakes_only_who_sees_it(bpy
     b = add_sphere(bpy, "B", (3, 0, 0), color=(0.2, 0.9, 0.2))
     c = add_sphere(bpy, "C", (0, 200, 0))           # 200 m away: outside A's and B's range
     d = add_sphere(bpy, "D", (0, 205, 0))           # C's only neighbour
-    module = bake_module()
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count >= 4
+    assert probe_renders() >= 4
     stamps = {n: (maps_folder(tmp_path, n) / "diffuse.exr").stat().st_mtime_ns for n in "ABCD"}
 
-    before = module.render_count
+    before = probe_renders()
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before, "an unchanged scene rendered again"
+    assert probe_renders() == before, "an unchanged scene rendered again"
     assert all(bpy.data.objects[n].platelight.probe_status == "baked (unchanged)" for n in "ABCD")
 
     b.location.x = 2.5
     # Checking says who is stale, renders nothing and writes nothing.
     assert bpy.ops.platelight.check_probes(all_objects=True, cull=False) == {"FINISHED"}
-    assert module.render_count == before
+    assert probe_renders() == before
     assert [bpy.data.objects[n].platelight.probe_status for n in "ABCD"] == \
         ["stale", "stale", "up to date", "up to date"]
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 2        # A (sees B) and B (its origin moved)
+    assert probe_renders() == before + 2        # A (sees B) and B (its origin moved)
     after = {n: (maps_folder(tmp_path, n) / "diffuse.exr").stat().st_mtime_ns for n in "ABCD"}
     assert after["A"] != stamps["A"] and after["B"] != stamps["B"]
     assert after["C"] == stamps["C"] and after["D"] == stamps["D"]
 
     # A material edit on B is an input of A's probe too.
     b.data.materials[0].node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (1, 0, 0, 1)
-    before = module.render_count
+    before = probe_renders()
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 1        # only A sees B's material
+    assert probe_renders() == before + 1        # only A sees B's material
     # force re-renders everything
-    before = module.render_count
+    before = probe_renders()
     bake(bpy, all_objects=True, cull=False, force=True)
-    assert module.render_count == before + 4
+    assert probe_renders() == before + 4
 
 
 def test_frame_range_writes_per_frame_maps_of_a_moving_object(bpy_clean, tmp_path):
@@ -184,10 +182,9 @@ def test_objects_off_screen_in_every_frame_are_skipped(bpy_clean, tmp_path):
     new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5))
     seen = add_sphere(bpy, "Seen", (0, 0, 0))
     behind = add_sphere(bpy, "Behind", (0, -20, 0))     # behind the camera at y = -10
-    module = bake_module()
-    before = module.render_count
+    before = probe_renders()
     bpy.ops.platelight.bake_probes(all_objects=True)
-    assert module.render_count == before + 1
+    assert probe_renders() == before + 1
     assert behind.platelight.probe_status.startswith("skipped")
     assert not maps_folder(tmp_path, "Behind").exists()
     assert seen.platelight.probe_status == "baked"
@@ -255,9 +252,8 @@ def test_panels_draw_and_menus_list_the_operator(bpy_clean, tmp_path):
     bpy = bpy_clean
     new_scene(bpy, tmp_path)
     ob = add_sphere(bpy, "Sphere", (0, 0, 0))
-    module = bake_module()
-    assert module.menu_entry in bpy.types.VIEW3D_MT_object._dyn_ui_initialize()
-    panels = __import__(module.__package__.rsplit(".", 1)[0] + ".addon.ui.panels", fromlist=["x"])
+    assert bake_module(None).menu_entry in bpy.types.VIEW3D_MT_object._dyn_ui_initialize()
+    panels = __import__(bake_module(None).__name__.rsplit(".", 2)[0] + ".ui.panels", fromlist=["x"])
 
     class Recorder:
         """Stands in for UILayout, which only Blender's window code can create."""
@@ -319,10 +315,9 @@ def test_world_maps_follow_strength_and_a_mapping_rotation(bpy_clean, tmp_path, 
     # world's tiny lamp at 16 samples misses its energy by 15 %).
     turn_world(bpy, scene, (0, 0, np.pi / 2))
     background.inputs["Strength"].default_value = 1.5
-    module = bake_module()
-    before = module.render_count
+    before = probe_renders()
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before
+    assert probe_renders() == before
     turned = compute_maps(np.roll(env, env.shape[1] // 4, axis=1), MapSettings(), which=("diffuse",))
     np.testing.assert_allclose(read_map(tmp_path, "_world", "diffuse"), 1.5 * turned.maps["diffuse"],
                                rtol=1e-4, atol=1e-6)
@@ -341,17 +336,16 @@ def test_world_maps_read_from_a_turned_world_match_cycles_rendering_it(bpy_clean
     tree.nodes["Background"].inputs["Strength"].default_value = 1.3
     turn_world(bpy, scene, (0.5, -0.3, 2.0), vector_type)
     add_sphere(bpy, "Probe", (0, 0, 0))
-    module = bake_module()
-    before = module.render_count
+    before = probe_renders()
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before                # read from the file
+    assert probe_renders() == before                     # read from the file
     read = read_map(tmp_path, "_world", "diffuse")
 
     gamma = tree.nodes.new("ShaderNodeGamma")            # gamma 1: the same world, but unreadable
     tree.links.new(tree.nodes["Environment Texture"].outputs["Color"], gamma.inputs["Color"])
     tree.links.new(gamma.outputs["Color"], tree.nodes["Background"].inputs["Color"])
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 1            # rendered by Cycles
+    assert probe_renders() == before + 1                 # rendered by Cycles
     rendered = read_map(tmp_path, "_world", "diffuse")
     expected = downsample_area(read, rendered.shape[0])
     err = np.abs(rendered - expected).mean() / expected.mean()
@@ -424,11 +418,10 @@ def test_lights_are_probe_inputs_but_not_something_a_probe_sees(bpy_clean, tmp_p
     bake(bpy, all_objects=True, cull=False)
     assert lonely.platelight.probe_dir.endswith("_world/")
     assert a.platelight.probe_status == "baked"
-    module = bake_module()
-    before = module.render_count
+    before = probe_renders()
     sun.data.energy = 3.0
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 1          # A's probe sees the sun-lit neighbour
+    assert probe_renders() == before + 1          # A's probe sees the sun-lit neighbour
     assert a.platelight.probe_status == "baked"
 
 
@@ -444,30 +437,29 @@ def test_shape_key_modifier_and_text_changes_make_probes_stale(bpy_clean, tmp_pa
     for point in key.data:
         point.co.z *= 0.3
     key.value = 0.0
-    module = bake_module()
     bake(bpy, all_objects=True, cull=False)
-    before = module.render_count
+    before = probe_renders()
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before              # unchanged: cache hit
+    assert probe_renders() == before              # unchanged: cache hit
     key.value = 1.0
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 1
+    assert probe_renders() == before + 1
     b.modifiers.new("Twist", "SIMPLE_DEFORM").angle = 0.5
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 2
+    assert probe_renders() == before + 2
     b.modifiers["Twist"].angle = 0.9
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 3
+    assert probe_renders() == before + 3
     # Text: editing the characters changes the probe.
     text = bpy.data.objects.new("Sign", bpy.data.curves.new("Sign", "FONT"))
     bpy.context.scene.collection.objects.link(text)
     text.location = (0, 2, 0)
     text.data.body = "AR"
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 4
+    assert probe_renders() == before + 4
     text.data.body = "VR"
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 5
+    assert probe_renders() == before + 5
     assert a.platelight.probe_status == "baked"
 
 
@@ -482,16 +474,17 @@ def test_fast_world_sampling_is_a_setting_that_makes_probes_stale(bpy_clean, tmp
     scene = bpy.context.scene
     assert module.ProbeBake(bpy.context, [a], [1]).world_map_resolution is None
     scene.platelight.probe_fast_world = True
-    assert module.ProbeBake(bpy.context, [a], [1]).world_map_resolution == module.PROBE_WORLD_MAP_RESOLUTION
+    cap = bake_module("probe_render").PROBE_WORLD_MAP_RESOLUTION
+    assert module.ProbeBake(bpy.context, [a], [1]).world_map_resolution == cap
     scene.platelight.probe_fast_world = False
     sampling = (scene.world.cycles.sampling_method, scene.world.cycles.sample_map_resolution)
     bake(bpy, all_objects=True, cull=False)
-    before = module.render_count
+    before = probe_renders()
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before              # unchanged: cache hit
+    assert probe_renders() == before              # unchanged: cache hit
     scene.platelight.probe_fast_world = True
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 1
+    assert probe_renders() == before + 1
     assert (scene.world.cycles.sampling_method, scene.world.cycles.sample_map_resolution) == sampling
 
 
@@ -507,8 +500,7 @@ def test_owner_shadows_its_floor_in_its_own_probe_unless_the_papers_probe_is_ask
     sun.data.energy = 3.0
     bpy.context.scene.collection.objects.link(sun)           # pointing straight down
     scene = bpy.context.scene
-    module = bake_module()
-    flags = {f: getattr(ball, f) for f in module.SHADOW_ONLY_HIDDEN_RAYS}
+    flags = {f: getattr(ball, f) for f in bake_module("probe_render").SHADOW_ONLY_HIDDEN_RAYS}
 
     def below():
         spec = read_map(tmp_path, "Ball", "specular")
@@ -521,10 +513,10 @@ def test_owner_shadows_its_floor_in_its_own_probe_unless_the_papers_probe_is_ask
     bake(bpy, all_objects=True, cull=False)
     shadowed = below()
     assert {f: getattr(ball, f) for f in flags} == flags
-    before = module.render_count
+    before = probe_renders()
     scene.platelight.probe_owner_shadows = False
     bake(bpy, all_objects=True, cull=False)
-    assert module.render_count == before + 1                  # the setting is in the hash
+    assert probe_renders() == before + 1                  # the setting is in the hash
     sunlit = below()
     # Sunlit floor: 0.8/pi * 3 W/m^2 ~ 0.76 plus sky; in the ball's shadow only the dim sky.
     assert sunlit > 0.5 and shadowed < 0.25 * sunlit, (shadowed, sunlit)

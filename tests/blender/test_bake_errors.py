@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import pytest
 
+from platelight.addon import names
+
 from bake_scenes import add_plane, add_sphere, bake_module, maps_folder, new_scene, scene_snapshot
 
 
@@ -140,7 +142,7 @@ def test_cancel_midway_keeps_finished_maps_and_restores_the_scene(bpy_clean, tmp
     job.start()
     try:
         assert job.step()                      # one object-frame done, five to go
-        assert scene.camera.name == module.PROBE_CAMERA
+        assert scene.camera.name == names.PROBE_CAMERA
         job.cancel()                           # what Esc does in the modal operator
         assert not job.step()
     finally:

@@ -16,7 +16,8 @@ import capture_render as cr
 import support
 from platelight.addon.capture import mirror_ball
 from platelight.addon.capture.boards import write_target
-from platelight.addon.capture.tracking import CharucoTarget, MarkerTarget, rotation_error_deg
+from platelight.addon.capture.poses import rotation_error_deg
+from platelight.addon.capture.targets import CharucoTarget, MarkerTarget
 from platelight.addon.exr_io import read_exr
 from platelight.addon.ibl.equirect import downsample_area
 

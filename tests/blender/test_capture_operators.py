@@ -12,7 +12,8 @@ import pytest
 import capture_render as cr
 from platelight.addon.capture import mirror_ball
 from platelight.addon.capture.boards import write_target
-from platelight.addon.capture.tracking import MarkerTarget, rotation_error_deg
+from platelight.addon.capture.poses import rotation_error_deg
+from platelight.addon.capture.targets import MarkerTarget
 from platelight.addon.exr_io import read_exr
 from test_capture_probe import brackets, forward_ball, smooth_env
 

@@ -142,7 +142,7 @@ def test_group_matches_numpy_reference(bpy_clean, tmp_path, form):
     scene.render.resolution_percentage = 100
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 1
-    ops_module("composite").set_plate_colour_management(scene)
+    ops_module("common").set_plate_colour_management(scene)
     rng = np.random.default_rng(3)
     shape = (16, 32)
     plate = rng.uniform(0.05, 2.0, shape + (3,))
@@ -191,7 +191,7 @@ def test_cg_blur_softens_edges_and_keeps_energy(bpy_clean, tmp_path):
     scene.render.resolution_percentage = 100
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 1
-    ops_module("composite").set_plate_colour_management(scene)
+    ops_module("common").set_plate_colour_management(scene)
     cg = np.zeros((32, 64, 4), np.float32)
     cg[10:22, 20:44] = (0.8, 0.4, 0.2, 1.0)  # an opaque CG rectangle
     files = {"Plate": tmp_path / "plate.exr", "CG": tmp_path / "cg.exr"}

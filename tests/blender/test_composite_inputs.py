@@ -306,7 +306,7 @@ def test_compositing_panel_draws_existing_operators(bpy_clean):
     import support
 
     bpy = bpy_clean
-    panel_module = importlib.import_module(f"{support.EXT_MODULE}.addon.ui.composite_panel")
+    panel_module = importlib.import_module(f"{support.EXT_MODULE}.ui.composite_panel")
     assert hasattr(bpy.types, "PLATELIGHT_PT_compositing")
 
     class Recorder:

@@ -6,7 +6,7 @@ import numpy as np
 
 import support  # noqa: F401
 from support import compat
-from platelight.addon.demo_ar import run_ar_demo
+from platelight.drivers.demo_ar import run_ar_demo
 from platelight.addon.exr_io import read_exr
 
 

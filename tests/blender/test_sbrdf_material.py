@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import sbrdf_scene as sc
+from platelight.addon import names
 from platelight.addon.material.params import PARAMETERS
 from platelight.addon.material.presets import PRESETS, preset_label, preset_params
 from support import compat
@@ -120,9 +121,9 @@ def test_group_is_idempotent_and_upgrades_in_place(bpy_clean, tmp_path):
     ob.platelight.probe_dir = str(tmp_path)
     sm = _sm()
     mat = sm.apply_sbrdf_material(ob, preset_name="plastic")
-    group = bpy.data.node_groups[sbrdf.GROUP_NAME]
+    group = bpy.data.node_groups[names.SBRDF_GROUP]
     assert sbrdf.ensure_sbrdf_group() == group
-    assert [g.name for g in bpy.data.node_groups].count(sbrdf.GROUP_NAME) == 1
+    assert [g.name for g in bpy.data.node_groups].count(names.SBRDF_GROUP) == 1
     labels = [i.name for i in group.interface.items_tree if i.in_out == "INPUT"]
     for name in ("Diffuse Albedo", "Specular Albedo", "Glossiness", "Cx", "Cy", "Cz",
                  "Fresnel Falloff", "Tangent Rotation", "Normal"):
@@ -150,7 +151,7 @@ def test_version_1_groups_keep_the_papers_falloff(bpy_clean, tmp_path):
     ob.platelight.probe_dir = str(tmp_path)
     sm = _sm()
     old = sm.apply_sbrdf_material(ob, preset_name="chrome")
-    group = bpy.data.node_groups[sbrdf.GROUP_NAME]
+    group = bpy.data.node_groups[names.SBRDF_GROUP]
     group[sbrdf.VERSION_KEY] = 1
     group.interface.remove(next(i for i in group.interface.items_tree if i.name == "Paper Falloff"))
     sbrdf.ensure_sbrdf_group()

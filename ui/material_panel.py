@@ -5,8 +5,8 @@ import os
 
 import bpy
 
-from ...node_groups import sbrdf_material as sm
-from ...node_groups.probe_maps import probe_maps_status
+from ..node_groups import sbrdf_material as sm
+from ..node_groups.probe_maps import probe_maps_status
 from .registration import register_classes, unregister_classes
 
 SECTIONS = (

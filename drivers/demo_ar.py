@@ -8,24 +8,25 @@ the plate, lights from the probe (its sun, sharp) and the differential composite
 composites (PNG sequence), a contact sheet (plate | CG | shadows | composite) and stage timings.
 
 Blender runs inside this process (the bpy module); the extension is enabled from this package's
-own folder in a throw-away user profile, as the tests do.
+own folder in a throw-away user profile, as the tests do (drivers/headless.py).
 """
 from __future__ import annotations
 
 import math
 import os
 import pathlib
-import sys
-import tempfile
 import time
 
 import numpy as np
 
-from .cli_render import temp_path
-from .errors import PlateLightError
-from .exr_io import read_exr
-from .fileio import ensure_writable_folder, write_json_atomic
-from .imaging import contact_sheet, linear_to_srgb8, write_png
+from ..addon import names
+from ..addon.demo import bundled_hdris
+from ..addon.errors import PlateLightError
+from ..addon.exr_io import read_exr
+from ..addon.fileio import ensure_writable_folder, write_json_atomic
+from ..addon.imaging import contact_sheet, linear_to_srgb8, write_png
+from ..addon.render_files import temp_path
+from .headless import EXT_MODULE, blender_with_extension
 
 HDRI = "city"
 SIZE = (320, 180)
@@ -34,28 +35,8 @@ PLATE_SAMPLES = 32
 COMPOSITE_SAMPLES = 16
 # the footage's exposure (the camera's): applies to the plate and the CG alike
 FILM_EXPOSURE = 0.55
-EXT_MODULE = "bl_ext.dev.platelight"
 PROBE_SAMPLES = 64   # the bake's default 16 leaves sun fireflies on the floor in the probes
 SBRDF_PRESETS = {"CG Plaster Sphere": "marble", "CG Chrome Sphere": "chrome"}
-
-
-def blender_with_extension():
-    """bpy with this package enabled as the extension bl_ext.dev.platelight."""
-    if "bpy" not in sys.modules:
-        os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp(prefix="platelight-demo-profile-")
-    import bpy
-
-    if EXT_MODULE not in bpy.context.preferences.addons:
-        repo_dir = pathlib.Path(tempfile.mkdtemp(prefix="platelight-demo-repo-"))
-        (repo_dir / "platelight").symlink_to(pathlib.Path(__file__).resolve().parents[1],
-                                             target_is_directory=True)
-        repos = bpy.context.preferences.extensions.repos
-        if "dev" not in [r.module for r in repos]:
-            repos.new(name="dev", module="dev", custom_directory=str(repo_dir), source="USER")
-        bpy.ops.preferences.addon_enable(module=EXT_MODULE)
-    if EXT_MODULE not in bpy.context.preferences.addons:
-        raise PlateLightError("Could not enable the PlateLight extension inside Blender.")
-    return bpy
 
 
 def _material(bpy, name, colour, roughness=0.5, metallic=0.0, checker=None):
@@ -222,8 +203,6 @@ def _apply_sbrdf_if_available(bpy, objects, timings, maps_dir):
 
 def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> dict:
     """Run the AR demo into ``out_dir``; returns the timings of every stage (seconds)."""
-    from .demo import bundled_hdris
-
     out = pathlib.Path(ensure_writable_folder(out_dir))
     hdris = bundled_hdris()
     if hdri not in hdris:
@@ -263,7 +242,7 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
     bpy.ops.platelight.setup_composite(method="CATCHER", samples=COMPOSITE_SAMPLES, denoise_shadows=True)
     from importlib import import_module
 
-    composite_ops = import_module(f"{EXT_MODULE}.operators.composite")
+    compositor_tree = import_module(f"{EXT_MODULE}.node_groups.compositor_tree")
 
     # 3. render the composites (each file appears complete or not at all)
     t0 = time.perf_counter()
@@ -274,12 +253,12 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
         scene.frame_set(frame)
         pass_dir = out / "passes" / f"{frame:04d}"
         pass_dir.mkdir(parents=True, exist_ok=True)
-        composite_ops.add_pass_outputs(scene, str(pass_dir) + "/")
+        compositor_tree.add_pass_outputs(scene, str(pass_dir) + "/")
         exr = comp_dir / f"composite_{frame:04d}.exr"
         _render_still(bpy, scene, str(exr))
         composite = read_exr(exr)
         write_png(comp_dir / f"composite_{frame:04d}.png", linear_to_srgb8(composite))
-        passes = {n: read_exr(composite_ops.pass_output_path(scene, str(pass_dir), n), "RGBA")
+        passes = {n: read_exr(compositor_tree.pass_output_path(scene, str(pass_dir), n), "RGBA")
                   for n in ("Plate", "CG", "Shadows")}
         rows.append([("plate", linear_to_srgb8(passes["Plate"][..., :3])),
                      ("CG", linear_to_srgb8(passes["CG"][..., :3])),
@@ -293,7 +272,7 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
     write_png(out / "contact_sheet.png", sheet)
     timings["contact_sheet_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_all
-    timings["materials"] = "PlateLight SBRDF" if used_sbrdf else "Principled BSDF (SBRDF part not installed)"
+    timings["materials"] = names.SBRDF_GROUP if used_sbrdf else "Principled BSDF (SBRDF part not installed)"
     timings["frames"] = frames
     timings["size"] = list(size)
     write_json_atomic(out / "timings.json", timings)

@@ -1,7 +1,6 @@
-"""What a probe depends on, read from the Blender scene (helpers of operators/bake.py; not an
-operator itself, so not in operators._MODULES): plain-data descriptions for the content hash,
-which objects a probe sees, where a probe sits, which maps a material reads, and whether the
-world is just an EXR."""
+"""What a probe depends on, read from the Blender scene (for the bake, job.py): plain-data
+descriptions for the content hash, which objects a probe sees, where a probe sits, which maps a
+material reads, and whether the world is just an EXR."""
 from __future__ import annotations
 
 import os
@@ -9,11 +8,11 @@ import os
 import bpy
 import numpy as np
 
-from ..addon.bake import culling, needs
-from ..addon.bake.hashing import content_hash
+from ...addon import names
+from ...addon.bake import culling, needs
+from ...addon.bake.hashing import content_hash
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
-SBRDF_GROUP = "PlateLight SBRDF"
 
 
 # --------------------------------------------------------------------------- describing inputs
@@ -207,7 +206,7 @@ def lobes_of_material(mat) -> needs.Lobes:
     nodes = mat.node_tree.nodes
     for node in nodes:
         tree = getattr(node, "node_tree", None)
-        if node.bl_idname == "ShaderNodeGroup" and tree is not None and tree.name.startswith(SBRDF_GROUP):
+        if node.bl_idname == "ShaderNodeGroup" and tree is not None and tree.name.startswith(names.SBRDF_GROUP):
             return needs.Lobes(diffuse=_nonzero(node, "Diffuse Albedo"),
                                specular=_nonzero(node, "Specular Albedo"),
                                glossiness=_scalar(node, "Glossiness"),

@@ -3,16 +3,13 @@ without opening Blender's window. bpy runs in this process (the project's enviro
 split a long range across machines with --part I/N (each writes only its own frames' files)."""
 from __future__ import annotations
 
-import contextlib
 import importlib
 import os
 import sys
-import tempfile
 
-from ..errors import PlateLightError
-from .frames import parse_frames, split_frames
-
-BLEND_MAGICS = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")   # plain, zstd, gzip
+from ..addon.bake.frames import parse_frames, parse_part, split_frames
+from ..addon.errors import PlateLightError
+from .headless import check_blend, import_bpy, open_blend, stdout_to_stderr
 
 
 def add_parser(sub):
@@ -35,54 +32,14 @@ def add_parser(sub):
     parser.set_defaults(func=run)
 
 
-def _parse_part(text):
-    try:
-        part, parts = (int(x) for x in text.split("/"))
-    except ValueError:
-        raise PlateLightError(f"--part must look like 2/4, not {text!r}.") from None
-    return part, parts
-
-
-def _check_blend(path):
-    if not os.path.isfile(path):
-        raise PlateLightError(f"File not found: {path}")
-    with open(path, "rb") as fh:
-        head = fh.read(7)
-    if not any(head.startswith(m) for m in BLEND_MAGICS):
-        raise PlateLightError(f"Not a .blend file: {path}")
-
-
-def _import_bpy():
-    """bpy with a throw-away user profile, so an installed copy of PlateLight cannot clash."""
-    if "bpy" not in sys.modules:
-        os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp(prefix="platelight-cli-profile-")
-    import bpy
-
-    return bpy
-
-
-@contextlib.contextmanager
-def _stdout_to_stderr():
-    """Send what C code prints on stdout (Cycles' 'Saved: ...' lines) to stderr for a while."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        os.dup2(2, 1)
-        yield
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(saved)
-
-
 def run(args):
     blend = os.path.abspath(args.blend)
-    _check_blend(blend)
+    check_blend(blend)
     frames = parse_frames(args.frames) if args.frames else None
     if args.part:
         if frames is None:
             raise PlateLightError("--part needs --frames (the range to split).")
-        frames = split_frames(frames, *_parse_part(args.part))
+        frames = split_frames(frames, *parse_part(args.part))
         if not frames:
             print("platelight bake: this part has no frames (more parts than frames).")
             return 0
@@ -91,18 +48,14 @@ def run(args):
         if value is not None and not 1 <= value <= 65536:
             raise PlateLightError(f"--{name} must be between 1 and 65536, not {value}.")
 
-    bpy = _import_bpy()
-    root = __package__.rsplit(".addon", 1)[0]
+    bpy = import_bpy()
+    root = __package__.rsplit(".", 1)[0]
     package = importlib.import_module(root)
-    try:
-        with _stdout_to_stderr():
-            bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
-    except RuntimeError as exc:
-        raise PlateLightError(f"Blender cannot open {blend}: {str(exc).strip().splitlines()[-1]}") from None
+    open_blend(bpy, blend)
     registered = hasattr(bpy.types.Object, "platelight") and hasattr(bpy.ops.platelight, "bake_probes")
     if not registered:
         package.register()
-    bake = importlib.import_module(f"{root}.operators.bake")
+    bake = importlib.import_module(f"{root}.operators.bake.job")
     context = bpy.context
     scene = context.scene
     if args.samples:
@@ -121,13 +74,13 @@ def run(args):
     def progress(done, total):
         print(f"platelight bake: {done}/{total}", file=sys.stderr, flush=True)
 
-    with _stdout_to_stderr():      # Blender's render log; stdout keeps only the summary
+    with stdout_to_stderr():      # Blender's render log; stdout keeps only the summary
         job = bake.bake_probes(context, objects, frames or [scene.frame_current], static=frames is None,
                                use_cache=not args.force, cull=not args.no_cull, progress=progress)
     for warning in job.warnings:
         print(f"platelight bake: warning: {warning}", file=sys.stderr)
     print(job.summary())
     if args.save:
-        with _stdout_to_stderr():
+        with stdout_to_stderr():
             bpy.ops.wm.save_mainfile()
     return 0

@@ -2,7 +2,8 @@
 lights from the probe, the composite; and the same tracking in the Movie Clip editor's sidebar."""
 import bpy
 
-from ... import compat
+from .. import compat
+from ..addon import names
 from .registration import register_classes, unregister_classes
 
 
@@ -16,7 +17,7 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         scene = context.scene
-        plate = bpy.data.images.get("PlateLight Plate")
+        plate = bpy.data.images.get(names.PLATE_IMAGE)
         col = layout.column(align=True)
         col.label(text=f"Plate: {plate.filepath if plate else 'none'}", icon="IMAGE_DATA")
         col.operator("platelight.setup_plate", icon="FILE_MOVIE")

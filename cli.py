@@ -8,16 +8,17 @@ import argparse
 import importlib
 import sys
 
-from .errors import PlateLightError
+from .addon.errors import PlateLightError
 
-# subcommand -> module (relative to this package) that defines add_parser()
+# subcommand -> module (relative to this package) that defines add_parser(); the engine's
+# commands run without Blender, the drivers' start headless Blender (drivers/headless.py)
 SUBCOMMANDS = {
-    "maps": ".ibl.cli_maps",
-    "demo": ".demo",
-    "track": ".capture.cli_track",
-    "probe": ".capture.cli_probe",
-    "bake": ".bake.cli_bake",
-    "render": ".cli_render",
+    "maps": ".addon.ibl.cli_maps",
+    "demo": ".drivers.demo",
+    "track": ".addon.capture.cli_track",
+    "probe": ".addon.capture.cli_probe",
+    "bake": ".drivers.bake",
+    "render": ".drivers.render",
 }
 
 

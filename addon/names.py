@@ -1,0 +1,41 @@
+"""Every "PlateLight …" name PlateLight gives to a Blender datablock or node, written once.
+
+Scripts and outside checks find things by these names (the node groups are part of design.md's
+scripting contract), so a name changed here changes it everywhere and nowhere else."""
+
+# --- shader node groups and the material's nodes (node_groups/sbrdf*.py, probe_maps.py)
+SBRDF_GROUP = "PlateLight SBRDF"            # the paper's SBRDF (Eq 1-7); also the node's name
+PROBE_GROUP_PREFIX = "PlateLight Probe "    # + probe folder: the group sampling its four maps
+PROBE_NODE = "PlateLight Probe"             # the material's node holding that group
+
+# --- compositing (node_groups/composite.py, node_groups/compositor_tree.py)
+DIFFERENTIAL_GROUP = "PlateLight Differential"   # the compositor group; also the node's name
+COMPOSITOR_TREE = "PlateLight Composite"
+PASSES_NODE = "PlateLight Passes"           # File Output node of the CG, Shadows and Plate passes
+CG_COLLECTION = "PlateLight CG"
+PHANTOM_COLLECTION = "PlateLight Phantoms"
+LAYER_CG = "PlateLight CG"                  # view layers of the differential method
+LAYER_LOCAL = "PlateLight Local"
+LAYER_WITHOUT = "PlateLight Local Without"
+
+# --- footage and grain (operators/plate.py, operators/grain.py)
+PLATE_IMAGE = "PlateLight Plate"
+GRAIN_IMAGE = "PlateLight Grain"
+GRAIN_NODE = "PlateLight Grain"
+
+# --- lights, tracking, world probe, bake
+LIGHTS_COLLECTION = "PlateLight Lights"
+TRACK_CAMERA = "PlateLight Camera"
+MARKER_PLANE = "PlateLight Marker Plane"
+WORLD = "PlateLight World"
+WORLD_PROBE_NODE = "PlateLight Probe"      # the world's Environment Texture node
+PROBE_CAMERA = "PlateLight Probe Camera"   # the bake's temporary panoramic camera
+PACKED_MAP_PREFIX = "PlateLight "          # + <probe folder>/<map file>: a map packed in the .blend
+
+# --- the material presets preview (node_groups/sbrdf_preview.py)
+PRESETS_SCENE = "PlateLight Presets"
+PRESETS_CAMERA = "PlateLight Presets Camera"
+
+# --- custom properties PlateLight stores on datablocks
+PLATE_FRAME_OFFSET_KEY = "platelight_frame_offset"   # on the plate image: file frame = scene frame + this
+GRAIN_SETTINGS_KEY = "platelight_grain"   # on the grain image: {"amount", "level", "response"} measured

@@ -1,1 +1,0 @@
-"""Blender-side face of PlateLight: properties, preferences and panels (imports bpy)."""

@@ -1,0 +1,182 @@
+"""The scene's compositor tree "PlateLight Composite": the plate, the render layers and the
+"PlateLight Differential" group (node_groups/composite.py) wired to the output; the grain image
+that platelight.match_grain made, wired into the group; and the File Output of the passes.
+Rebuilt in place by platelight.setup_composite (operators/composite.py)."""
+import bpy
+
+from .. import compat
+from ..addon import names
+from .composite import build_differential_group
+
+
+def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
+    """The scene's compositor tree (rebuilt in place): plate + render layers -> group -> output."""
+    group = build_differential_group()
+    tree = compat.new_compositor_tree(scene, names.COMPOSITOR_TREE)
+    nodes, links = tree.nodes, tree.links
+
+    plate = nodes.new("CompositorNodeImage")
+    plate.name = plate.label = "Plate"
+    plate.image = plate_image
+    plate.location = (-600, 300)
+    if plate_image.source in {"SEQUENCE", "MOVIE"}:
+        plate.frame_duration = max(1, scene.frame_end - scene.frame_start + 1)
+        plate.frame_start = scene.frame_start
+        plate.frame_offset = int(plate_image.get(names.PLATE_FRAME_OFFSET_KEY, 0))
+        plate.use_auto_refresh = True
+    diff = nodes.new("CompositorNodeGroup")
+    diff.name = diff.label = names.DIFFERENTIAL_GROUP
+    diff.node_tree = group
+    diff.location = (0, 0)
+    diff.inputs["Ratio Form"].default_value = 1.0 if ratio_form else 0.0
+    diff.inputs["Shadow Clamp"].default_value = shadow_clamp
+    links.new(plate.outputs["Image"], diff.inputs["Plate"])
+
+    cg = nodes.new("CompositorNodeRLayers")
+    cg.name = cg.label = names.LAYER_CG
+    cg.scene = scene
+    cg.layer = names.LAYER_CG
+    cg.location = (-600, 0)
+
+    def equal_everywhere(socket_a, socket_b_or_value, location):
+        """A factor that is 1 where all RGB channels of a equal b (a socket or a number)."""
+        x, y = location
+        sep_a = nodes.new("CompositorNodeSeparateColor")
+        sep_a.location = (x, y)
+        links.new(socket_a, sep_a.inputs["Image"])
+        sep_b = None
+        if isinstance(socket_b_or_value, bpy.types.NodeSocket):
+            sep_b = nodes.new("CompositorNodeSeparateColor")
+            sep_b.location = (x, y - 150)
+            links.new(socket_b_or_value, sep_b.inputs["Image"])
+        result = None
+        for k, channel in enumerate(("Red", "Green", "Blue")):
+            cmp = compat.compositor_math(nodes, "COMPARE")
+            cmp.location = (x + 150, y - 60 * k)
+            links.new(sep_a.outputs[channel], cmp.inputs[0])
+            if sep_b is not None:
+                links.new(sep_b.outputs[channel], cmp.inputs[1])
+            else:
+                cmp.inputs[1].default_value = socket_b_or_value
+            cmp.inputs[2].default_value = 0.0
+            if result is None:
+                result = cmp.outputs[0]
+            else:
+                both = compat.compositor_math(nodes, "MULTIPLY")
+                both.location = (x + 300, y - 60 * k)
+                links.new(result, both.inputs[0])
+                links.new(cmp.outputs[0], both.inputs[1])
+                result = both.outputs[0]
+        return result
+
+    def denoised_unless(socket, keep_factor, location):
+        """OIDN on ``socket``, except where ``keep_factor`` is 1: there the raw pixel is kept,
+        so denoising never touches pixels the CG does not reach (the plate stays exact)."""
+        x, y = location
+        node = nodes.new("CompositorNodeDenoise")
+        node.location = (x, y)
+        links.new(socket, node.inputs["Image"])
+        mix = compat.compositor_mix(nodes)
+        mix.node.location = (x + 200, y)
+        links.new(keep_factor, mix.factor)
+        links.new(node.outputs["Image"], mix.a)
+        links.new(socket, mix.b)
+        return mix.result
+
+    cg_image = cg.outputs["Image"]
+    if denoise_shadows:
+        alpha_zero = compat.compositor_math(nodes, "COMPARE")
+        alpha_zero.location = (-450, 150)
+        links.new(cg.outputs["Alpha"], alpha_zero.inputs[0])
+        alpha_zero.inputs[1].default_value = 0.0
+        alpha_zero.inputs[2].default_value = 0.0
+        cg_image = denoised_unless(cg_image, alpha_zero.outputs[0], (-300, 100))
+    links.new(cg_image, diff.inputs["CG"])
+    if method == "CATCHER":
+        catcher = cg.outputs["Shadow Catcher"]
+        if denoise_shadows:
+            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, -250)), (-300, -200))
+        links.new(catcher, diff.inputs["With"])
+    else:
+        local = {}
+        for name, socket, y in ((names.LAYER_LOCAL, "With", -300), (names.LAYER_WITHOUT, "Without", -600)):
+            node = nodes.new("CompositorNodeRLayers")
+            node.name = node.label = name
+            node.scene = scene
+            node.layer = name
+            node.location = (-600, y)
+            local[socket] = node.outputs["Image"]
+        if denoise_shadows:
+            same = equal_everywhere(local["With"], local["Without"], (-900, -450))
+            local = {k: denoised_unless(v, same, (-300, -300 if k == "With" else -600)) for k, v in local.items()}
+        for socket, value in local.items():
+            links.new(value, diff.inputs[socket])
+    out = compat.composite_output(tree)
+    out.node.location = (400, 0)
+    links.new(diff.outputs["Image"], out)
+    scene.render.use_compositing = True
+    wire_grain(scene, tree)      # grain matched earlier (platelight.match_grain) stays wired
+    return tree
+
+
+def differential_node(scene):
+    tree = compat.compositor_tree(scene)
+    if tree is None:
+        return None
+    node = tree.nodes.get(names.DIFFERENTIAL_GROUP)
+    if node is None or node.bl_idname != "CompositorNodeGroup" or node.node_tree is None:
+        return None
+    return node
+
+
+def wire_grain(scene, tree=None):
+    """Connect the grain image (if match_grain made one) to the Differential group of ``tree``
+    (the scene's compositor tree) with its stored settings. Returns the image node or None."""
+    image = bpy.data.images.get(names.GRAIN_IMAGE)
+    settings = image.get(names.GRAIN_SETTINGS_KEY) if image is not None else None
+    tree = tree or compat.compositor_tree(scene)
+    diff = tree.nodes.get(names.DIFFERENTIAL_GROUP) if tree is not None else None
+    if settings is None or diff is None:
+        return None
+    node = tree.nodes.get(names.GRAIN_NODE)
+    if node is None or node.bl_idname != "CompositorNodeImage":
+        node = tree.nodes.new("CompositorNodeImage")
+        node.name = node.label = names.GRAIN_NODE
+    node.location = (diff.location.x - 600, diff.location.y + 400)
+    node.image = image
+    if image.source == "SEQUENCE":
+        # files are numbered by scene frame: file number = (frame - start + 1) + offset = frame
+        node.frame_start = scene.frame_start
+        node.frame_offset = scene.frame_start - 1
+        node.frame_duration = max(1, scene.frame_end - scene.frame_start + 1)
+        node.use_auto_refresh = True
+    tree.links.new(node.outputs["Image"], diff.inputs["Grain"])
+    diff.inputs["Grain Amount"].default_value = float(settings["amount"])
+    diff.inputs["Grain Level"].default_value = (*settings["level"], 1.0)
+    diff.inputs["Grain Response"].default_value = (*settings["response"], 1.0)
+    return node
+
+
+def add_pass_outputs(scene, directory):
+    """Also write the group's CG and Shadows outputs and the plate as float EXRs into ``directory``
+    (one file per pass; pass_output_path says which); used by the demo and the tests."""
+    tree = compat.compositor_tree(scene)
+    diff = tree.nodes[names.DIFFERENTIAL_GROUP]
+    node = tree.nodes.get(names.PASSES_NODE) or tree.nodes.new("CompositorNodeOutputFile")
+    node.name = node.label = names.PASSES_NODE
+    node.location = (400, -300)
+    compat.set_still_image(node.format)
+    node.format.file_format = "OPEN_EXR"
+    node.format.color_depth = "32"
+    node.format.color_mode = "RGBA"
+    compat.set_file_output(node, directory, ("CG", "Shadows", "Plate"))
+    tree.links.new(diff.outputs["CG"], node.inputs["CG"])
+    tree.links.new(diff.outputs["Shadows"], node.inputs["Shadows"])
+    tree.links.new(tree.nodes["Plate"].outputs["Image"], node.inputs["Plate"])
+    return node
+
+
+def pass_output_path(scene, directory, name):
+    """The file add_pass_outputs' pass ``name`` ("CG", "Shadows", "Plate") is written to when the
+    scene's current frame is rendered."""
+    return compat.file_output_path(directory, name, scene.frame_current)

@@ -1,0 +1,168 @@
+"""The probe's panorama: an equirectangular camera at the probe origin and the Cycles settings a
+probe is rendered with, set up on the first render of a bake and removed at its end. The scene
+settings changed on the way are recorded in the bake's SceneState (scene_state.py)."""
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+
+import bpy
+
+from ... import compat
+from ...addon import names
+from ...addon.errors import PlateLightError
+from ...addon.exr_io import read_exr
+from ..common import addon_preferences
+
+# The PANO camera with this rotation renders the Environment Texture's layout (design.md).
+PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
+PROBE_CLIP_START = 1e-3
+# Cycles builds the world's light-importance map at each render session. Capping it at 256
+# columns (scene.platelight.probe_fast_world) makes a 128x64 probe about 3x faster, but under a
+# small bright sun (the city HDRI) it leaves fireflies on sunlit surfaces and their median 22 %
+# too dark (docs/compositing.md), so the world's own resolution is the default.
+PROBE_WORLD_MAP_RESOLUTION = 256
+
+# Counts Cycles probe renders (tests and benchmarks read it to prove a cache hit renders nothing).
+render_count = 0
+# An owner baked with its shadows (scene.platelight.probe_owner_shadows) is invisible to these
+# rays only: the probe looks through it, but the floor under it lies in its shadow, as seen from
+# its surface (the paper hides the owner, so a probe shows a sunlit floor under a ball on it).
+SHADOW_ONLY_HIDDEN_RAYS = ("visible_camera", "visible_diffuse", "visible_glossy",
+                           "visible_transmission", "visible_volume_scatter")
+
+
+class ProbeRenderer:
+    """Renders probes for one bake: ``render()`` sets everything up the first time (so a bake of
+    cache hits never touches the render settings), ``end()`` removes the camera, the render
+    results and the temporary folder (the bake restores the recorded settings before)."""
+
+    def __init__(self, context, state, world_map_resolution):
+        self.context = context
+        self.scene = context.scene
+        self.view_layer = context.view_layer
+        self.world_map_resolution = world_map_resolution      # None: leave the world's setting
+        self._state = state
+        self.camera = None
+        self._tmpdir = None
+        self._render_results = None
+
+    def begin(self):
+        """Set up rendering for probes; every setting changed here is recorded in the state."""
+        scene, state = self.scene, self._state
+        self._render_results = {im.name for im in bpy.data.images if im.type == "RENDER_RESULT"}
+        self._tmpdir = tempfile.mkdtemp(prefix="platelight-probe-")
+        cam_data = bpy.data.cameras.new(names.PROBE_CAMERA)
+        cam_data.type = "PANO"
+        cam_data.panorama_type = "EQUIRECTANGULAR"
+        cam_data.clip_start = PROBE_CLIP_START
+        cam_data.clip_end = scene.platelight.probe_distance
+        self.camera = bpy.data.objects.new(names.PROBE_CAMERA, cam_data)
+        self.camera.rotation_euler = PANO_ROTATION
+        scene.collection.objects.link(self.camera)
+        height = scene.platelight.probe_height
+        render, cycles = scene.render, scene.cycles
+        state.set(scene, "camera", self.camera)
+        state.set(render, "engine", "CYCLES")
+        state.set(render, "resolution_x", 2 * height)
+        state.set(render, "resolution_y", height)
+        state.set(render, "resolution_percentage", 100)
+        state.set(render, "use_border", False)
+        state.set(render, "film_transparent", False)
+        state.set(render, "use_compositing", False)
+        state.set(render, "use_sequencer", False)
+        state.set(render, "use_persistent_data", True)      # scene sync once, not per probe
+        state.set(render, "use_motion_blur", False)
+        # Only the active view layer: compositing setups add layers that hold things out.
+        state.set(render, "use_single_layer", True)
+        state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
+        fmt = render.image_settings
+        for attr, value in compat.still_image_format():
+            state.set(fmt, attr, value)
+        state.set(fmt, "file_format", "OPEN_EXR")
+        state.set(fmt, "color_mode", "RGB")
+        state.set(fmt, "color_depth", "32")
+        state.set(cycles, "device", "CPU")
+        state.set(cycles, "samples", scene.platelight.probe_samples)
+        state.set(cycles, "use_adaptive_sampling", False)
+        state.set(cycles, "use_denoising", False)
+        state.set(cycles, "seed", 0)
+        state.set(cycles, "use_animated_seed", False)
+        # A box the size of one pixel: each texel is its own area, no blur from neighbours.
+        state.set(cycles, "pixel_filter_type", "BOX")
+        state.set(cycles, "filter_width", 1.0)
+        world = scene.world.cycles
+        limit = self.world_map_resolution
+        if limit and (world.sampling_method == "AUTOMATIC" or
+                      world.sampling_method == "MANUAL" and world.sample_map_resolution > limit):
+            state.set(world, "sampling_method", "MANUAL")
+            state.set(world, "sample_map_resolution", limit)
+        prefs = addon_preferences(self.context)
+        if prefs is not None and prefs.threads > 0:
+            state.set(render, "threads_mode", "FIXED")
+            state.set(render, "threads", prefs.threads)
+        # Holdout / indirect-only are compositing devices: a probe sees everything as it is.
+        stack = [self.view_layer.layer_collection]
+        while stack:
+            layer_collection = stack.pop()
+            for flag in ("holdout", "indirect_only"):
+                if getattr(layer_collection, flag):
+                    state.set(layer_collection, flag, False)
+            stack.extend(layer_collection.children)
+        # Phantoms stand for real things: probes must see them as they are, not as catchers.
+        for ob in scene.objects:
+            if ob.platelight.phantom:
+                if ob.is_shadow_catcher:
+                    state.set(ob, "is_shadow_catcher", False)
+                if ob.is_holdout:
+                    state.set(ob, "is_holdout", False)
+
+    def render(self, origin, hidden=(), shadow_only=()):
+        """Render the panorama seen from ``origin`` (world space) with ``hidden`` objects hidden
+        and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
+        shades the floor under itself); returns float32 (H, 2H, 3), first row the top (the
+        Environment Texture's layout)."""
+        global render_count
+        if self.camera is None:            # set up on the first render: cache hits never need it
+            self.begin()
+        self.camera.location = tuple(float(x) for x in origin)
+        restore = []
+        try:
+            for ob in hidden:
+                if not ob.hide_render:
+                    restore.append((ob, "hide_render", False))
+                    ob.hide_render = True
+            for ob in shadow_only:
+                for flag in SHADOW_ONLY_HIDDEN_RAYS:
+                    if getattr(ob, flag):
+                        restore.append((ob, flag, True))
+                        setattr(ob, flag, False)
+            try:
+                bpy.ops.render.render(write_still=True)
+            except RuntimeError as exc:
+                reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
+                raise PlateLightError(f"Cycles could not render the probe at {tuple(round(float(x), 3) for x in origin)}: "
+                                      f"{reason}") from None
+            render_count += 1
+        finally:
+            for ob, flag, value in restore:
+                setattr(ob, flag, value)
+        return read_exr(self.scene.render.filepath, "RGB")
+
+    def end(self):
+        """Remove the probe camera, the probe renders' results (not the user's) and the
+        temporary folder; call after the bake's SceneState was restored."""
+        if self.camera is not None:
+            cam_data = self.camera.data
+            bpy.data.objects.remove(self.camera, do_unlink=True)
+            bpy.data.cameras.remove(cam_data, do_unlink=True)
+            self.camera = None
+        for image in [im for im in bpy.data.images if im.type == "RENDER_RESULT"]:
+            if self._render_results is not None and image.name not in self._render_results:
+                bpy.data.images.remove(image)
+        self._render_results = None
+        if self._tmpdir:
+            shutil.rmtree(self._tmpdir, ignore_errors=True)
+            self._tmpdir = None

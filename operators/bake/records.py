@@ -1,0 +1,68 @@
+"""What makes a probe up to date, and the maps kept inside the .blend: the content hash of a
+probe's inputs (stored in its record by addon/bake/layout.py; an unchanged hash means no
+render), the hash of the world's maps, and packing map files into the .blend."""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from ...addon import names
+from ...addon.bake.hashing import content_hash
+from ...addon.ibl.maps import map_filename
+
+
+def probe_hash(scene, origin, maps, world_digest, seen):
+    """The hash of one object's probe: where it sits, which maps, the world, the bake settings,
+    Cycles' bounces and ``seen`` (sorted (object, description digest) of what the probe sees)."""
+    settings = scene.platelight
+    cycles = scene.cycles
+    return content_hash({
+        "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
+        "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
+                     settings.probe_fast_world, settings.probe_owner_shadows,
+                     settings.probe_distance],
+        "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
+                   cycles.transmission_bounces],
+        "seen": seen,
+    })
+
+
+def world_maps_hash(scene, world_digest, image, map_settings):
+    """The hash of the world's own maps: from ``image`` (a WorldImage: an EXR, its strength and
+    rotation) or, when None, from a probe render of the world alone (then the probe settings
+    count too)."""
+    source = image.path if image is not None else None
+    return content_hash({"world": world_digest, "source": source,
+                         "strength": image.strength if image else None,
+                         "rotation": image.rotation if image else None,
+                         "heights": map_settings.heights,
+                         "sampling": map_settings.sampling,
+                         "samples": None if source else scene.platelight.probe_samples,
+                         "probe_height": None if source else scene.platelight.probe_height})
+
+
+def pack_maps(folder_rel, frame, maps, refresh):
+    """Pack the map files of one probe folder (and frame) into the .blend."""
+    for name in maps:
+        filename = map_filename(name, frame)
+        label = f"{names.PACKED_MAP_PREFIX}{folder_rel.rstrip('/').rsplit('/', 1)[-1]}/{filename}"
+        pack_map(folder_rel + filename, label, refresh)
+
+
+def pack_map(rel_path, label, refresh):
+    """Pack one map file into the .blend as the image ``label`` (its filepath the Blender-relative
+    file, so a material loading that file with check_existing finds it). Re-packing updates the
+    same image: never a duplicate."""
+    image = bpy.data.images.get(label)
+    if image is None:
+        image = bpy.data.images.load(rel_path, check_existing=True)
+        image.name = label
+    elif refresh or image.packed_file is None or image.filepath != rel_path:
+        if image.packed_file is not None:
+            image.unpack(method="REMOVE")
+        image.filepath = rel_path
+        image.reload()
+    else:
+        return image
+    image.pack()
+    return image

@@ -1,0 +1,1 @@
+"""Blender's face of PlateLight: properties, preferences, panels and class registration."""
