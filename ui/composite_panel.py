@@ -39,6 +39,7 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         row.operator("platelight.setup_composite", text="Shadow Catcher").method = "CATCHER"
         row.operator("platelight.setup_composite", text="Differential").method = "DIFFERENTIAL"
         col.operator("platelight.match_grain", text="Match Grain", icon="MOD_NOISE")
+        layout.operator("platelight.export_farm_job", icon="NETWORK_DRIVE")
 
 
 class PLATELIGHT_PT_clip_tracking(bpy.types.Panel):
