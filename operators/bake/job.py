@@ -389,8 +389,11 @@ def bake_probes(context, objects, frames, *, static=True, use_cache=True, reuse_
                     reuse_world=reuse_world, cull=cull)
     try:
         job.start()
-        while job.step():
-            if progress:
+        more = True
+        while more:
+            done = job.progress[0]
+            more = job.step()
+            if progress and job.progress[0] > done:     # after every unit, the last one too
                 progress(*job.progress)
     finally:
         job.end()
