@@ -19,6 +19,7 @@ SUBCOMMANDS = {
     "probe": ".addon.capture.cli_probe",
     "bake": ".drivers.bake",
     "render": ".drivers.render",
+    "farm-job": ".drivers.farm_job",
 }
 
 

@@ -5,6 +5,7 @@ import os
 import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProperty
 
+from .. import compat
 from ..addon import names
 from .common import NeedsScene
 
@@ -135,9 +136,9 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
         scene = context.scene
         world = scene.world
         if world is None:
-            world = bpy.data.worlds.new(names.WORLD)
+            world = compat.new_world(names.WORLD)
             scene.world = world
-        nt = world.node_tree
+        nt = compat.node_tree(world)      # a 4.5 world made without nodes gets them
         background = next((n for n in nt.nodes if n.type == "BACKGROUND"), None) or nt.nodes.new("ShaderNodeBackground")
         output = next((n for n in nt.nodes if n.type == "OUTPUT_WORLD"), None) or nt.nodes.new("ShaderNodeOutputWorld")
         if not background.outputs["Background"].links:

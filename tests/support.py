@@ -47,3 +47,11 @@ def run_cli(*args, cwd=None, timeout=600) -> subprocess.CompletedProcess:
     """Run ``python -m platelight ARGS`` on this checkout; returns the completed process."""
     return subprocess.run([sys.executable, "-m", "platelight", *map(str, args)], cwd=cwd,
                           env=cli_env(), capture_output=True, text=True, timeout=timeout)
+
+
+def compat():
+    """The checkout's compat.py (the Blender-version glue; it imports bpy, so call it from
+    Blender tests only)."""
+    import importlib
+
+    return importlib.import_module("platelight.compat")
