@@ -162,3 +162,21 @@ def test_unwrap_uses_the_elliptical_outline():
     stretched, _ = mirror_ball.unwrap(wide, mirror_ball.Ball((299.5 + 0.5) * s - 0.5, 300.5, 215.0 * s, 215.0), 16)
     mask = mirror_ball.view_angle_deg(16) < 120
     assert np.median(np.abs(stretched - probe)[mask]) < 0.01
+
+
+def test_one_hdr_photo_is_an_hdr_probe(tmp_path):
+    """One Radiance .hdr photo of the ball (here the real photo decoded to linear light and
+    brightened past 1) needs no merge: no LDR warning, its highlights above 1 kept."""
+    from platelight.addon.hdr_io import write_radiance
+    from platelight.addon.imaging import srgb_to_linear
+
+    img = rp.read(rp.BALLS / "gene_miller.jpg")[..., ::-1]
+    radiance = srgb_to_linear(img / 255.0).astype(np.float32) * 4.0
+    write_radiance(tmp_path / "ball.hdr", radiance)
+    out, report = tmp_path / "p.exr", tmp_path / "r.json"
+    proc = support.run_cli("probe", tmp_path / "ball.hdr", "--out", out, "--height", 32, "--report", report)
+    assert proc.returncode == 0, proc.stderr
+    assert "low-dynamic-range" not in proc.stderr
+    ball = json.loads(report.read_text())["ball"]
+    assert abs(ball["radius"] / rp.ball_truth()["gene_miller.jpg"]["rx"] - 1) < 0.02
+    assert read_exr(out).max() > 1.0
