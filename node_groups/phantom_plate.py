@@ -13,6 +13,7 @@ out in math nodes) when the scene has one, so the lookup lands on the distorted 
 Rebuilt in place (idempotent) whenever the camera, plate or lens may have changed."""
 import bpy
 
+from .. import compat
 from ..addon import names
 from ._build import Graph
 
@@ -41,9 +42,8 @@ def build_phantom_plate_material(scene, camera, plate_image, intrinsics, frame_o
     of the plate's own camera."""
     fx, fy, cx, cy, dist, width, height = intrinsics
     k1, k2, p1, p2, k3 = (list(dist) + [0.0] * 5)[:5]
-    mat = bpy.data.materials.get(names.PHANTOM_PLATE_MATERIAL) or bpy.data.materials.new(names.PHANTOM_PLATE_MATERIAL)
-    mat.use_nodes = True
-    tree = mat.node_tree
+    mat = bpy.data.materials.get(names.PHANTOM_PLATE_MATERIAL) or compat.new_material(names.PHANTOM_PLATE_MATERIAL)
+    tree = compat.node_tree(mat)
     tree.nodes.clear()
     g = Graph(tree)
 

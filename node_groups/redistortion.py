@@ -6,6 +6,7 @@ nothing touched stays exactly 1 (bilinear weights of exact zeros stay zero) and 
 the CG is bit-exact. The plate itself is never resampled."""
 import bpy
 
+from .. import compat
 from ..addon import names
 
 
@@ -46,8 +47,7 @@ def wire_redistortion(scene, tree):
 
 
 def _math(nodes, links, operation, socket, value, location):
-    node = nodes.new("ShaderNodeMath")
-    node.operation = operation
+    node = compat.compositor_math(nodes, operation)
     node.location = location
     links.new(socket, node.inputs[0])
     node.inputs[1].default_value = value

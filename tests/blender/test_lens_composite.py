@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import support  # noqa: F401
+from support import compat
 from platelight.addon.capture.poses import blender_to_cv_pose
 from platelight.addon.exr_io import read_exr, write_exr
 from composite_scene import render_with_passes
@@ -44,9 +45,8 @@ def _marker(bpy, scene):
     mesh.from_pydata([(mx - s, my - s, 0.0), (mx + s, my - s, 0.0), (mx + s, my + s, 0.0), (mx - s, my + s, 0.0)],
                      [], [(0, 1, 2, 3)])
     ob = bpy.data.objects.new("Square", mesh)
-    mat = bpy.data.materials.new("White")
-    mat.use_nodes = True
-    nt = mat.node_tree
+    mat = compat().new_material("White")
+    nt = compat().node_tree(mat)
     nt.nodes.clear()
     emit = nt.nodes.new("ShaderNodeEmission")
     out = nt.nodes.new("ShaderNodeOutputMaterial")
@@ -94,7 +94,7 @@ def test_cg_sits_on_its_marker_in_the_distorted_composite(bpy_clean, tmp_path):
     shown = read_exr(bpy.path.abspath(background.filepath))
     assert shown.shape == (H, W, 3) and shown[H // 2, W // 2, 0] == np.float32(0.25)
     assert bpy.ops.platelight.setup_composite(samples=16) == {"FINISHED"}
-    tree = scene.compositing_node_group
+    tree = compat().compositor_tree(scene)
     assert sum(n.bl_idname == "CompositorNodeMapUV" for n in tree.nodes) >= 1
     bpy.context.view_layer.update()
     out, passes = render_with_passes(bpy, scene, tmp_path)
@@ -149,8 +149,7 @@ def test_blender_clip_camera_distorts_like_opencv(bpy_clean, tmp_path):
         scene.render.resolution_percentage = 100
         scene.render.engine = "BLENDER_WORKBENCH"
         scene.view_settings.view_transform = "Standard"
-        tree = bpy.data.node_groups.new("Distort", "CompositorNodeTree")
-        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        tree = compat().new_compositor_tree(scene, "Distort")
         image = tree.nodes.new("CompositorNodeImage")
         image.image = bpy.data.images.load(str(tmp_path / "coords.exr"))
         image.image.colorspace_settings.name = "Non-Color"
@@ -160,10 +159,8 @@ def test_blender_clip_camera_distorts_like_opencv(bpy_clean, tmp_path):
             node.inputs["Type"].default_value = "Distort"
         else:   # Blender 4.5
             node.distortion_type = "DISTORT"
-        out = tree.nodes.new("NodeGroupOutput")
         tree.links.new(image.outputs["Image"], node.inputs["Image"])
-        tree.links.new(node.outputs["Image"], out.inputs["Image"])
-        scene.compositing_node_group = tree
+        tree.links.new(node.outputs["Image"], compat().composite_output(tree))
         scene.render.use_compositing = True
         scene.render.image_settings.file_format = "OPEN_EXR"
         scene.render.filepath = str(tmp_path / f"{name}.exr")

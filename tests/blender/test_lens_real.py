@@ -7,6 +7,7 @@ import shutil
 import numpy as np
 
 import support  # noqa: F401
+from support import compat
 from platelight.addon.capture.targets import CharucoTarget
 from composite_scene import render_with_passes
 from test_lens import _real_data
@@ -26,9 +27,8 @@ def _cg_square(bpy, scene, centre, side, name):
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata([(x - s, y - s, z), (x + s, y - s, z), (x + s, y + s, z), (x - s, y + s, z)], [], [(0, 1, 2, 3)])
     ob = bpy.data.objects.new(name, mesh)
-    mat = bpy.data.materials.get("CG White") or bpy.data.materials.new("CG White")
-    mat.use_nodes = True
-    nt = mat.node_tree
+    mat = bpy.data.materials.get("CG White") or compat().new_material("CG White")
+    nt = compat().node_tree(mat)
     nt.nodes.clear()
     emit = nt.nodes.new("ShaderNodeEmission")
     nt.links.new(emit.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs[0])

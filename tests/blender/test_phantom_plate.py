@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import support  # noqa: F401
+from support import compat
 from platelight.addon.compositing import lens
 from platelight.addon.exr_io import read_exr, write_exr
 from composite_scene import render_with_passes
@@ -137,8 +138,7 @@ def test_chrome_sphere_reflects_the_real_floor(bpy_clean, tmp_path, surface):
     scene = bpy.context.scene
     cam = _camera(bpy, scene)
     floor = _floor(bpy, scene)
-    grey = bpy.data.materials.new("Hand-made grey")
-    grey.use_nodes = True
+    grey = compat().new_material("Hand-made grey")
     floor.data.materials.append(grey)
     bpy.context.view_layer.update()
     scene.render.resolution_x, scene.render.resolution_y = W, H
@@ -146,16 +146,14 @@ def test_chrome_sphere_reflects_the_real_floor(bpy_clean, tmp_path, surface):
     plate = np.where(_red(ground)[..., None], np.array([0.7, 0.05, 0.05]), np.array([0.3, 0.3, 0.3]))
     write_exr(tmp_path / "plate.exr", plate.astype(np.float32))
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs[0].default_value = (0.1, 0.1, 0.1, 1.0)
+    world = compat().new_world("World")
+    compat().node_tree(world).nodes["Background"].inputs[0].default_value = (0.1, 0.1, 0.1, 1.0)
     scene.world = world
     bpy.ops.mesh.primitive_uv_sphere_add(radius=RADIUS, location=tuple(CENTRE), segments=64, ring_count=32)
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
-    chrome = bpy.data.materials.new("Chrome")
-    chrome.use_nodes = True
-    bsdf = chrome.node_tree.nodes["Principled BSDF"]
+    chrome = compat().new_material("Chrome")
+    bsdf = compat().node_tree(chrome).nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (1, 1, 1, 1)
     bsdf.inputs["Metallic"].default_value = 1.0
     bsdf.inputs["Roughness"].default_value = 0.0
