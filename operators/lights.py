@@ -94,7 +94,7 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
 
     def execute(self, context):
         from ..addon.errors import PlateLightError
-        from ..addon.exr_io import read_exr
+        from ..addon.hdr_io import read_probe
         from ..addon.ibl.lights import probe_lights
 
         scene = context.scene
@@ -103,7 +103,7 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
             self.report({"ERROR"}, f"World probe not found: {image.path if image else '(none set)'}.")
             return {"CANCELLED"}
         try:
-            env = read_exr(image.path)
+            env = read_probe(image.path)
             if self.mode == "SUN_SKY":
                 return self._sun_and_sky(scene, image, env)
             lights = [_in_world(image, light) for light in probe_lights(env, self.count, self.detect_sun)]

@@ -25,7 +25,7 @@ IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 @dataclasses.dataclass(frozen=True)
 class WorldImage:
-    """An equirectangular EXR as the world shows it: in world direction d the world is
+    """An equirectangular EXR or Radiance .hdr as the world shows it: in world direction d the world is
     ``strength`` × the image in direction ``rotation @ d``."""
     path: str
     strength: float = 1.0
@@ -38,10 +38,10 @@ class WorldImage:
 
     def read(self) -> np.ndarray:
         """The world's environment as a float32 lat-long map (rotated, times the strength)."""
-        from ..addon.exr_io import read_exr
+        from ..addon.hdr_io import read_probe
         from ..addon.ibl.equirect import rotate_equirect
 
-        env = read_exr(self.path, "RGB")
+        env = read_probe(self.path)
         if self.turned:
             env = rotate_equirect(env, self.rotation)
         return env * np.float32(self.strength)
@@ -97,7 +97,7 @@ def _exr_path(env_node):
     if image is None or env_node.projection != "EQUIRECTANGULAR" or image.packed_file is not None:
         return None
     path = bpy.path.abspath(image.filepath, library=image.library)
-    return path if path.lower().endswith(".exr") and os.path.isfile(path) else None
+    return path if path.lower().endswith((".exr", ".hdr")) and os.path.isfile(path) else None
 
 
 def _world_chain(world):

@@ -52,6 +52,20 @@ def camera_path(n: int, distance: float, seed: int = 7) -> list[np.ndarray]:
     return out
 
 
+def calibration_path(n: int = 12, distance: float = 0.45, tilt_deg: float = 45.0, seed: int = 3) -> list[np.ndarray]:
+    """The views a calibration needs (calibration.ADVICE): the board tilted ``tilt_deg`` towards
+    ``n`` directions in turn, rolled, and seen off-centre in different parts of the frame."""
+    rng = np.random.default_rng(seed)
+    out = []
+    tilt = math.radians(tilt_deg)
+    for i in range(n):
+        az = 2 * math.pi * i / n
+        pos = distance * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
+        aim = np.array([0.05 * math.cos(3 * az + 1), 0.05 * math.sin(2 * az + 0.5), 0.0])
+        out.append(look_at(pos, aim, roll_deg=float(rng.uniform(-15, 15))))
+    return out
+
+
 def _cycles(scene, width, height, samples):
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"

@@ -12,9 +12,10 @@ import sys
 import tempfile
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-# the shared contracts and data: beside the checkout (/work/main) or above a worktree (/work/wt/NAME)
-SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "design.md").is_file()),
-              REPO.parent / "shared")
+# the shared data sit beside the main checkout (/work/shared next to /work/main); a worktree
+# (/work/wt/NAME) finds them one level further up
+SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "data").is_dir()), REPO.parent / "shared")
+REAL = SHARED / "data" / "real"
 GRACE = SHARED / "data" / "probes" / "grace_latlong.exr"
 EXT_MODULE = "bl_ext.dev.platelight"
 
