@@ -9,6 +9,7 @@ import sys
 
 from ..addon.bake.frames import parse_frames, parse_part, split_frames
 from ..addon.errors import PlateLightError
+from ..addon.farm.progress import Progress, blender_output
 from .headless import check_blend, import_bpy, open_blend, stdout_to_stderr
 
 
@@ -53,7 +54,8 @@ def run(args):
     bpy = import_bpy()
     root = __package__.rsplit(".", 1)[0]
     package = importlib.import_module(root)
-    open_blend(bpy, blend)
+    with blender_output(args.quiet):
+        open_blend(bpy, blend)
     registered = hasattr(bpy.types.Object, "platelight") and hasattr(bpy.ops.platelight, "bake_probes")
     if not registered:
         package.register()
@@ -72,8 +74,6 @@ def run(args):
         objects = [scene.objects[n] for n in names]
     else:
         objects = bake.target_objects(context, all_objects=True)
-
-    from ..addon.farm.progress import Progress, blender_output
 
     steps = Progress("bake", 0, unit="probe")
 

@@ -12,7 +12,7 @@ from ..addon.errors import PlateLightError
 from ..addon.farm import jobs
 from ..addon.farm.progress import blender_output
 from ..addon.fileio import ensure_writable_folder
-from .headless import check_blend, import_bpy
+from .headless import check_blend, import_bpy, open_blend
 
 
 def add_parser(sub):
@@ -48,11 +48,8 @@ def run(args):
 
     bpy = import_bpy()
     root = __package__.rsplit(".", 1)[0]
-    try:
-        with blender_output(quiet=True):      # Blender's log says nothing a job export needs
-            bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
-    except RuntimeError as exc:
-        raise PlateLightError(f"Blender cannot open {blend}: {str(exc).strip().splitlines()[-1]}") from None
+    with blender_output(quiet=True):      # Blender's log says nothing a job export needs
+        open_blend(bpy, blend)
     if not hasattr(bpy.types.Scene, "platelight"):
         importlib.import_module(root).register()
     farm_job = importlib.import_module(f"{root}.operators.farm_job")

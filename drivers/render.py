@@ -59,7 +59,8 @@ def run(args):
     file_format, ext = FORMATS[args.format]
 
     bpy = import_bpy()
-    open_blend(bpy, blend)
+    with blender_output(args.quiet):
+        open_blend(bpy, blend)
     scene = bpy.context.scene
     if scene.camera is None:
         raise PlateLightError(f"The scene {scene.name} has no camera to render from.")

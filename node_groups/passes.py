@@ -10,6 +10,7 @@ import tempfile
 
 import bpy
 
+from .. import compat
 from ..addon import names
 from ..addon.errors import PlateLightError
 from ..addon.farm.multilayer import CRYPTO_LEVELS, CRYPTO_NAME, assemble
@@ -22,7 +23,7 @@ PASS_FILES = tuple(stem for stem, _node, _socket in _SOURCES)
 
 def wire_pass_files(scene, directory):
     """Switch on the passes and (re)wire the File Output node to write into ``directory``."""
-    tree = scene.compositing_node_group
+    tree = compat.compositor_tree(scene)
     if tree is None or names.DIFFERENTIAL_GROUP not in tree.nodes or names.LAYER_CG not in tree.nodes:
         raise RuntimeError("no PlateLight composite")
     layer = scene.view_layers[names.LAYER_CG]
@@ -34,16 +35,13 @@ def wire_pass_files(scene, directory):
     node = tree.nodes.get(names.PASS_FILES_NODE) or tree.nodes.new("CompositorNodeOutputFile")
     node.name = node.label = names.PASS_FILES_NODE
     node.location = (400, -600)
-    node.directory = directory
-    node.file_name = ""
-    node.format.media_type = "IMAGE"
+    compat.set_still_image(node.format)
     node.format.file_format = "OPEN_EXR"
     node.format.color_depth = "32"
     node.format.color_mode = "RGBA"
     node.format.exr_codec = "NONE"          # a scratch file, read once
-    node.file_output_items.clear()
+    compat.set_file_output(node, directory, PASS_FILES)
     for stem, owner, socket in _SOURCES:
-        node.file_output_items.new("RGBA", stem)
         tree.links.new(nodes[owner].outputs[socket], node.inputs[stem])
     return node
 

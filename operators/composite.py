@@ -24,6 +24,7 @@ from ..addon import names
 from ..node_groups.compositor_tree import build_compositor_tree
 from .common import find_plate_image, set_plate_colour_management
 from .eevee_check import NO_GL_SENTENCE, eevee_available
+from .phantom_surface import apply_phantom_surfaces
 
 RENDERABLE = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 
@@ -214,6 +215,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         for ob in phantoms:
             ob.is_shadow_catcher = method in ("CATCHER", "LAYERED")
             ob.is_holdout = False
+        apply_phantom_surfaces(scene, phantoms)   # the plate on the phantoms (or their own materials)
 
         ours = {names.LAYER_CG, names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS}
         for layer in scene.view_layers:

@@ -7,7 +7,10 @@ from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from mathutils import Matrix
 
 from ..addon import names
+from ..addon.compositing.lens import has_distortion
+from ..addon.errors import PlateLightError
 from .common import NeedsScene
+from .lens import apply_lens, set_pinhole
 
 
 _DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_5X5_50", "DICT_5X5_100",
@@ -27,10 +30,10 @@ def _plate_path(context) -> str:
 def _clear_transform_keys(obj):
     """Remove an earlier track's location/rotation keys (Blender 5 layered actions), keeping
     any other animation of the camera (focus, lens...)."""
-    from bpy_extras.anim_utils import animdata_get_channelbag_for_assigned_slot
+    from bpy_extras.anim_utils import action_get_channelbag_for_slot   # 4.4 and later
 
     anim = obj.animation_data
-    bag = animdata_get_channelbag_for_assigned_slot(anim) if anim and anim.action else None
+    bag = action_get_channelbag_for_slot(anim.action, anim.action_slot) if anim and anim.action else None
     if bag is None:
         return
     for fc in [fc for fc in bag.fcurves if fc.data_path in ("location", "rotation_quaternion",
@@ -71,7 +74,6 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         from ..addon.capture.intrinsics import load_calibration
         from ..addon.capture.targets import CharucoTarget, MarkerTarget
         from ..addon.capture.tracking import track
-        from ..addon.errors import PlateLightError
 
         scene = context.scene
         source = bpy.path.abspath(self.filepath) if self.filepath else _plate_path(context)
@@ -102,6 +104,13 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         # Only now, with every frame solved, is the scene changed.
         camera = self._camera(context, sensor)
         self._apply(scene, camera, result, sensor)
+        intr = result.intrinsics
+        if has_distortion(intr.dist_array()):
+            try:   # the render camera sees the whole distorted frame; the compositor redistorts
+                apply_lens(scene, camera, intr.fx, intr.fy, intr.cx, intr.cy, intr.dist_array(),
+                           *result.image_size)
+            except PlateLightError as err:
+                self.report({"WARNING"}, f"The lens distortion is not carried into the scene: {err}")
         self._phantom_plane(context, result.target_extent)
         for warning in result.warnings:
             self.report({"WARNING"}, warning)
@@ -124,21 +133,11 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         intr = result.intrinsics
         scene.render.resolution_x, scene.render.resolution_y = width, height
         scene.render.resolution_percentage = 100
-        # Non-square pixels (fx != fy): Blender's pixel aspect is width/height of a pixel = fy/fx,
-        # and both of its fields must be >= 1. Calibrations within 0.5 % keep square pixels.
-        ratio = intr.fy / intr.fx
-        if abs(ratio - 1) < 0.005:
-            ratio = 1.0
-        scene.render.pixel_aspect_x = max(ratio, 1.0)
-        scene.render.pixel_aspect_y = max(1.0 / ratio, 1.0)
         cam = camera.data
         cam.type = "PERSP"
         cam.sensor_fit = "HORIZONTAL"
         cam.sensor_width = sensor
-        cam.lens = intr.fx * sensor / width
-        # OpenCV's principal point (pixel centres at integers) -> Blender's shift (in image widths)
-        cam.shift_x = -(intr.cx - (width - 1) / 2) / width
-        cam.shift_y = (intr.cy - (height - 1) / 2) / width
+        set_pinhole(scene, cam, intr.fx, intr.fy, intr.cx, intr.cy, width, height)
         camera.rotation_mode = "QUATERNION"
         _clear_transform_keys(camera)
         first = scene.frame_start

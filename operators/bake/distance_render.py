@@ -13,6 +13,7 @@ import os
 import bpy
 import numpy as np
 
+from ... import compat
 from ...addon import names
 from ...addon.exr_io import read_exr
 from ...addon.ibl import distance as distance_maps
@@ -25,7 +26,7 @@ def distance_datablocks():
     takes them away again at the bake's end."""
     material = bpy.data.materials.get(names.PROBE_DISTANCE)
     if material is None:
-        material = bpy.data.materials.new(names.PROBE_DISTANCE)
+        material = compat.new_material(names.PROBE_DISTANCE)
         tree = material.node_tree
         tree.nodes.clear()
         camera = tree.nodes.new("ShaderNodeCameraData")
@@ -35,8 +36,7 @@ def distance_datablocks():
         tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
     world = bpy.data.worlds.get(names.PROBE_DISTANCE)
     if world is None:
-        world = bpy.data.worlds.new(names.PROBE_DISTANCE)
-        world.use_nodes = True
+        world = compat.new_world(names.PROBE_DISTANCE)
         background = world.node_tree.nodes["Background"]
         background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
         background.inputs["Strength"].default_value = distance_maps.FAR

@@ -275,30 +275,3 @@ def world_description(scene):
         stamp = None
     return {"world": world.name_full, "tree": describe_tree(world.node_tree),
             "color": list(world.color), "probe": path, "probe_mtime": stamp}
-
-
-def environment_exr(world):
-    """(EXR path, strength) when the world is exactly an equirectangular EXR image feeding a
-    Background node into the World Output (no mapping, no colour nodes between); None when the
-    world has to be rendered instead to get it right."""
-    tree = world.node_tree
-    if tree is None:
-        return None
-    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output]
-    if len(outputs) != 1 or not outputs[0].inputs["Surface"].is_linked:
-        return None
-    background = outputs[0].inputs["Surface"].links[0].from_node
-    if background.bl_idname != "ShaderNodeBackground" or background.inputs["Strength"].is_linked:
-        return None
-    color = background.inputs["Color"]
-    if not color.is_linked:
-        return None
-    env = color.links[0].from_node
-    if (env.bl_idname != "ShaderNodeTexEnvironment" or env.image is None
-            or env.inputs["Vector"].is_linked or env.projection != "EQUIRECTANGULAR"):
-        return None
-    image = env.image
-    path = bpy.path.abspath(image.filepath, library=image.library)
-    if image.packed_file is not None or not path.lower().endswith(".exr") or not os.path.isfile(path):
-        return None
-    return path, float(background.inputs["Strength"].default_value)

@@ -10,6 +10,7 @@ import tempfile
 
 import bpy
 
+from ... import compat
 from ...addon import names
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
@@ -80,7 +81,8 @@ class ProbeRenderer:
         state.set(render, "use_single_layer", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
-        state.set(fmt, "media_type", "IMAGE")
+        for attr, value in compat.still_image_format():
+            state.set(fmt, attr, value)
         state.set(fmt, "file_format", "OPEN_EXR")
         state.set(fmt, "color_mode", "RGB")
         state.set(fmt, "color_depth", "32")
@@ -111,7 +113,9 @@ class ProbeRenderer:
                 if getattr(layer_collection, flag):
                     state.set(layer_collection, flag, False)
             stack.extend(layer_collection.children)
-        # Phantoms stand for real things: probes must see them as they are, not as catchers.
+        # Phantoms stand for real things: probes must see them as they are, not as catchers
+        # (with the plate material: the plate, seen by the probe's camera rays too).
+        state.set(scene.platelight, "probe_render", True)
         for ob in scene.objects:
             if ob.platelight.phantom:
                 if ob.is_shadow_catcher:

@@ -29,6 +29,7 @@ sys.path.insert(0, str(HERE.parent))
 import support  # noqa: E402
 import conftest  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
+from support import compat  # noqa: E402
 
 W, H = 128, 72
 TRUTH_SAMPLES = int(os.environ.get("PLATELIGHT_BENCH_TRUTH_SPP", 512))
@@ -68,7 +69,7 @@ def add_box(bpy, scene, centre, size, colour):
     verts = [(x * h, y * h, z * h) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
     faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
     mesh.from_pydata(verts, [], faces)
-    mat = bpy.data.materials.new("Box")
+    mat = compat().new_material("Box")
     mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*colour, 1)
     mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.8
     mesh.materials.append(mat)
@@ -87,7 +88,7 @@ def build(bpy, hdri_path, material, camera=None, box=None):
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.seed = 7
     scene.view_settings.view_transform = "Standard"
-    world = bpy.data.worlds.new("Probe")
+    world = compat().new_world("Probe")
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdri_path)
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
@@ -100,7 +101,7 @@ def build(bpy, hdri_path, material, camera=None, box=None):
     location, target, cam.data.lens = camera or CAMERA
     cam.location = location
     cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
-    floor_mat = bpy.data.materials.new("Floor")
+    floor_mat = compat().new_material("Floor")
     floor_mat.node_tree.nodes.clear()
     diffuse = floor_mat.node_tree.nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (0.45, 0.45, 0.45, 1)
@@ -120,7 +121,7 @@ def build(bpy, hdri_path, material, camera=None, box=None):
     bm.free()
     for poly in smesh.polygons:
         poly.use_smooth = True
-    mat = bpy.data.materials.new("Sphere")
+    mat = compat().new_material("Sphere")
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*material["colour"], 1)
     bsdf.inputs["Roughness"].default_value = material["roughness"]

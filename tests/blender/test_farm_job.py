@@ -149,8 +149,12 @@ def test_killed_bake_leaves_whole_maps_and_resumes(shot, tmp_path):
     for record in records:
         frame = record.stem.split("_")[1]
         assert all((maps / f"{m}_{frame}.exr").is_file() for m in ("diffuse", "glossy1", "glossy2", "specular"))
-    again = support.run_cli(*args[3:])
+    again = support.run_cli(*args[3:], "--quiet")
     assert again.returncode == 0, again.stderr[-2000:]
+    # --quiet: Blender's log is gone, PlateLight's progress is there, one line per probe baked
+    lines = again.stderr.strip().splitlines()
+    assert all(line.startswith("platelight bake: probe ") for line in lines), lines
+    assert len(lines) == FRAMES and lines[-1].startswith(f"platelight bake: probe {FRAMES} done ({FRAMES}/{FRAMES}, 0 left)")
     assert again.stdout.strip() == (f"PlateLight: baked {FRAMES - len(records)} probe(s); "
                                     f"reused {len(records)} unchanged."), again.stdout
 
