@@ -454,7 +454,9 @@ def equal_time_and_error(rows, material, route, key):
     the most dB this route gains at equal per-frame time (the catcher's PSNR interpolated in log
     time; before its fastest point its fastest point is used, which favours the catcher), and the
     largest speed-up at equal error (the catcher's time to reach this route's PSNR, interpolated;
-    None where the catcher never gets that good within its sample counts)."""
+    None where the catcher never gets that good within its sample counts). A speed-up is
+    returned as a string "≤ N×" when this route is worse than the catcher's fastest point: the
+    catcher would get there with fewer samples than were measured, so N is only an upper bound."""
     ref = sorted((r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == SHOT_REFERENCE)
     ours = [(r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == route]
     if not ref or not ours:
@@ -466,9 +468,15 @@ def equal_time_and_error(rows, material, route, key):
         gains.append(p - float(np.interp(np.log(t), ref_t, ref_p)))
         best = np.maximum.accumulate(ref_p)             # the catcher's best so far, by time
         if p <= best[-1]:
-            t_ref = float(np.exp(np.interp(p, best, ref_t))) if p > best[0] else float(np.exp(ref_t[0]))
-            speedups.append(t_ref / t)
-    return max(gains), (max(speedups) if speedups else None)
+            bound = p <= best[0]
+            t_ref = float(np.exp(ref_t[0])) if bound else float(np.exp(np.interp(p, best, ref_t)))
+            speedups.append((t_ref / t, bound))
+    if not speedups:
+        return max(gains), None
+    exact = [v for v, bound in speedups if not bound]
+    if exact:
+        return max(gains), max(exact)
+    return max(gains), f"≤ {max(v for v, _ in speedups):.2f}×"
 
 
 LOAD_NOTE = os.environ.get("PLATELIGHT_BENCH_LOAD_NOTE", "")
@@ -533,13 +541,13 @@ def write_report(out_dir, rows):
               "Per scene and route: the most dB gained over the catcher at equal time per frame "
               "(its PSNR interpolated in log time; before its fastest point, its fastest point), "
               "and the largest speed-up at equal PSNR (— where the catcher is never that good "
-              "within 256 spp). Goal: ≥ 10× faster at equal error on object and shadow, mirror "
+              "within 256 spp; ≤ N× where the route is worse than the catcher at 16 spp, so N is only an upper bound). Goal: ≥ 10× faster at equal error on object and shadow, mirror "
               "≥ 40 dB and glossy ≥ 38 dB object PSNR.", "",
               "| scene | route | gain object | gain shadow | gain frame | speed-up object | speed-up shadow | speed-up frame |",
               "|---|---|---:|---:|---:|---:|---:|---:|"]
     scenes = list(dict.fromkeys(r["material"] for r in rows))
     routes = list(dict.fromkeys(r["route"] for r in rows))
-    fmt = (lambda x: "—" if x is None else f"{x:.2f}×")
+    fmt = (lambda x: "—" if x is None else x if isinstance(x, str) else f"{x:.2f}×")
     for scene_name in scenes:
         for route in routes:
             if route == SHOT_REFERENCE:
