@@ -36,8 +36,9 @@ EEVEE = "BLENDER_EEVEE_NEXT" if BLENDER_4 else "BLENDER_EEVEE"
 
 # ---- materials and worlds
 def node_tree(idblock):
-    """The shader node tree of a material or world, made on 4.5 where a new one has none."""
-    if idblock.node_tree is None and BLENDER_4:
+    """The shader node tree a material or world renders with; on 4.5 its nodes are switched on
+    (a new one has none until then, and one with them off renders without its tree)."""
+    if BLENDER_4 and not idblock.use_nodes:
         idblock.use_nodes = True
     return idblock.node_tree
 
