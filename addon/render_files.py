@@ -91,3 +91,9 @@ def commit(tmp, final):
     _fsync(tmp)
     os.replace(tmp, final)
     _fsync(os.path.dirname(final) or ".", directory=True)
+
+
+def check_prefix(name: str) -> None:
+    """``--name``: a plain file name prefix (no folder, not hidden: hidden names are temporaries)."""
+    if not name or os.sep in name or name.startswith("."):
+        raise PlateLightError(f"--name must be a plain file name prefix, not {name!r}.")
