@@ -7,6 +7,7 @@ import bpy
 from .. import compat
 from ..addon import names
 from .composite import build_differential_group
+from .redistortion import wire_redistortion
 
 
 def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
@@ -116,6 +117,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     links.new(diff.outputs["Image"], out)
     scene.render.use_compositing = True
     wire_grain(scene, tree)      # grain matched earlier (platelight.match_grain) stays wired
+    wire_redistortion(scene, tree)   # a calibrated lens: the layers land through the plate's lens
     return tree
 
 

@@ -70,12 +70,10 @@ class MultilayerPasses:
 
     def join(self, frame, composite):
         """Replace the frame's rendered ``composite`` (a temporary file) by the multilayer file."""
-        files = {}
-        for stem in PASS_FILES:
-            found = sorted(glob.glob(os.path.join(glob.escape(self.scratch), glob.escape(stem) + "*.exr")))
-            if not found:
+        files = {stem: compat.file_output_path(self.scratch, stem, frame) for stem in PASS_FILES}
+        for stem, path in files.items():
+            if not os.path.isfile(path):
                 raise PlateLightError(f"Blender wrote no {stem} pass for frame {frame}; see the render log.")
-            files[stem] = found[-1]
         joined = composite + ".joined.exr"
         assemble(composite, files, self.phantoms, joined)
         os.replace(joined, composite)

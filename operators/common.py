@@ -1,4 +1,7 @@
 """Small helpers shared by PlateLight's operators (bpy)."""
+import os
+import tempfile
+
 import bpy
 
 from ..addon import names
@@ -34,6 +37,18 @@ def addon_preferences(context):
     add-on (a script that registered the classes itself)."""
     addon = context.preferences.addons.get(__package__.rsplit(".", 1)[0])
     return addon.preferences if addon is not None else None
+
+
+def data_folder(scene, name):
+    """<maps folder>/<name> (scene.platelight.maps_dir, next to the .blend by default): where
+    PlateLight writes the files it makes for a scene; a temporary folder when the maps folder is
+    relative and the file is unsaved."""
+    maps_dir = scene.platelight.maps_dir
+    if maps_dir and (bpy.data.filepath or not maps_dir.startswith("//")):
+        folder = bpy.path.abspath(maps_dir)
+    else:
+        folder = os.path.join(tempfile.gettempdir(), "platelight")
+    return os.path.join(folder, name)
 
 
 class NeedsScene:
