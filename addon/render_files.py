@@ -94,6 +94,6 @@ def commit(tmp, final):
 
 
 def check_prefix(name: str) -> None:
-    """``--name``: a plain file name prefix (no folder, not hidden: hidden names are temporaries)."""
+    """The frames' file name prefix: plain (no folder, not hidden: hidden names are temporaries)."""
     if not name or os.sep in name or name.startswith("."):
-        raise PlateLightError(f"--name must be a plain file name prefix, not {name!r}.")
+        raise PlateLightError(f"The output name must be a plain file name prefix, not {name!r}.")
