@@ -38,6 +38,8 @@ LENS_STMAP_IMAGE = "PlateLight Lens ST-Map"  # plate pixel -> where the undistor
 PLATE_UNDISTORTED_IMAGE = "PlateLight Plate Undistorted"   # the camera's background image
 REDISTORT_NODE = "PlateLight Redistort"     # label of the Map UV nodes after the render layers
 PHANTOM_PLATE_MATERIAL = "PlateLight Phantom Plate"
+PHANTOM_ALBEDO_IMAGE = "PlateLight Phantom Albedo"   # plate / phantoms rendered white
+PHANTOM_WHITE_MATERIAL = "PlateLight Phantom White"  # the white override of that render
 
 # --- lights, tracking, world probe, bake
 LIGHTS_COLLECTION = "PlateLight Lights"

@@ -91,3 +91,9 @@ def commit(tmp, final):
     _fsync(tmp)
     os.replace(tmp, final)
     _fsync(os.path.dirname(final) or ".", directory=True)
+
+
+def check_prefix(name: str) -> None:
+    """The frames' file name prefix: plain (no folder, not hidden: hidden names are temporaries)."""
+    if not name or os.sep in name or name.startswith("."):
+        raise PlateLightError(f"The output name must be a plain file name prefix, not {name!r}.")

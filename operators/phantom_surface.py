@@ -34,22 +34,35 @@ def plate_intrinsics(scene, camera):
     return fx, fy, cx, cy, (0.0,) * 5, scene.render.resolution_x, scene.render.resolution_y
 
 
-def apply_phantom_surfaces(scene, phantoms):
+def apply_phantom_surfaces(scene, phantoms, view_layer=None):
     """Give each phantom the surface its setting asks for; returns how many show the plate.
-    Without a plate or a camera every phantom keeps its own material."""
+    Without a plate or a camera every phantom keeps its own material. Showing the plate renders
+    the phantoms once, white, to estimate their albedo (operators/phantom_albedo.py)."""
+    from .phantom_albedo import phantom_albedo
+
     plate = find_plate_image(scene)
     camera = scene.camera
     usable = plate is not None and camera is not None and camera.type == "CAMERA"
     wanted = [ob for ob in phantoms if usable and phantom_surface(scene, ob) == "PLATE"]
-    material = None
-    if wanted:
-        material = build_phantom_plate_material(scene, camera, plate, plate_intrinsics(scene, camera),
-                                                int(plate.get(names.PLATE_FRAME_OFFSET_KEY, 0)))
-    for ob in phantoms:
-        if ob in wanted:
-            _show_plate(ob, material)
-        else:
+    for ob in phantoms:          # the white render must not see the plate material
+        if ob not in wanted:
             _give_back(ob)
+    if not wanted:
+        return 0
+    layer = view_layer or bpy.context.view_layer
+    path, world_to_camera, fallback = phantom_albedo(scene, layer, wanted, plate, plate_intrinsics(scene, camera))
+    image = bpy.data.images.get(names.PHANTOM_ALBEDO_IMAGE)
+    if image is not None:
+        bpy.data.images.remove(image)
+    image = bpy.data.images.load(path, check_existing=False)
+    image.name = names.PHANTOM_ALBEDO_IMAGE
+    image.colorspace_settings.name = "Non-Color"
+    image.alpha_mode = "STRAIGHT"
+    # the map is in the render camera's frame: its own pinhole, no lens
+    material = build_phantom_plate_material(image, world_to_camera, pinhole_from_camera(scene, camera),
+                                            (scene.render.resolution_x, scene.render.resolution_y), fallback)
+    for ob in wanted:
+        _show_plate(ob, material)
     return len(wanted)
 
 

@@ -128,17 +128,12 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         description="What phantoms look like in reflections, bounced light and probes (each "
         "phantom may override it)",
         items=(
-            ("PLATE", "Plate", "The plate, projected from the plate's camera: CG reflects the real "
-             "surfaces and their colours bleed onto it"),
+            ("PLATE", "Plate", "The real surfaces' albedo, estimated from the plate and shaded by the "
+             "scene's lights: CG reflects the real surfaces, with its shadows, and their colours "
+             "bleed onto it"),
             ("MATERIAL", "Own Material", "Each phantom's own (hand-made) material"),
         ),
         default="PLATE",
-    )
-    probe_render: BoolProperty(
-        name="Probe Render",
-        description="On while PlateLight renders probes (phantom plate materials read it)",
-        default=False,
-        options={"HIDDEN", "SKIP_SAVE"},
     )
     sampling: EnumProperty(
         name="Sampling",

@@ -113,9 +113,7 @@ class ProbeRenderer:
                 if getattr(layer_collection, flag):
                     state.set(layer_collection, flag, False)
             stack.extend(layer_collection.children)
-        # Phantoms stand for real things: probes must see them as they are, not as catchers
-        # (with the plate material: the plate, seen by the probe's camera rays too).
-        state.set(scene.platelight, "probe_render", True)
+        # Phantoms stand for real things: probes must see them as they are, not as catchers.
         for ob in scene.objects:
             if ob.platelight.phantom:
                 if ob.is_shadow_catcher:

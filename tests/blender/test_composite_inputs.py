@@ -96,7 +96,7 @@ def test_rerunning_never_duplicates(bpy_clean, tmp_path):
         bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr"))
         assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
     state = scene_state(bpy)
-    assert state["images"] == ["PlateLight Plate"]
+    assert state["images"] == ["PlateLight Phantom Albedo", "PlateLight Plate"]   # one of each
     tree = compat().compositor_tree(bpy.context.scene)
     own_tree = [tree.name] if tree.name in bpy.data.node_groups else []   # 4.5: the scene's own tree
     assert state["node_groups"] == sorted(["PlateLight Differential"] + own_tree)

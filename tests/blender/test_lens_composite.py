@@ -122,7 +122,9 @@ def test_cg_sits_on_its_marker_in_the_distorted_composite(bpy_clean, tmp_path):
     edge = np.concatenate([side[20:-20] for side in np.split(expected, 4)]).astype(np.float32)
     coverage = cv2.remap(alpha.astype(np.float32), edge[:, 0], edge[:, 1], cv2.INTER_LINEAR)
     print(f"coverage on the projected edge: {coverage.min():.3f}..{coverage.max():.3f}")
-    assert np.abs(coverage - 0.5).max() < 0.2      # measured 0.39..0.62
+    # measured 0.39..0.62 on 5.x (bilinear Map UV); 4.5's Map UV filters anisotropically only
+    # (EWA), which softens the edge: 0.21..0.79
+    assert np.abs(coverage - 0.5).max() < (0.35 if compat().BLENDER_4 else 0.2)
     # and the plate is the plate wherever the CG is not
     outside = alpha == 0
     np.testing.assert_array_equal(out[..., :3][outside], np.float32(0.25))
@@ -182,10 +184,10 @@ def test_blender_clip_camera_distorts_like_opencv(bpy_clean, tmp_path):
         results[name] = (np.median(err[keep], 0), np.abs(err[keep] - np.median(err[keep], 0)).max())
     print({k: (v[0].round(4).tolist(), round(float(v[1]), 4)) for k, v in results.items()})
     for name, (offset, spread) in results.items():
-        # Blender's node places an output whose size differs from the input's by an odd count
-        # half a pixel off (measured: 0.5 px in y for the strong lens); the model itself agrees
+        # the model agrees to < 0.01 px; where the node places an output whose size differs from
+        # its input's is a constant offset (measured: 0.5 px in x on 5.2, 2 px in x on 4.5)
         assert spread < 0.01, name
-        assert np.all(np.abs(offset) <= 0.5 + 1e-3), name
+        assert np.all(np.abs(offset) <= (2.0 if compat().BLENDER_4 else 0.5) + 1e-3), name
 
 
 def test_bad_calibrations_are_refused_and_the_scene_kept(bpy_clean, tmp_path):

@@ -1,7 +1,7 @@
-"""The plate on the phantoms: a phantom seen by anything but the composite's camera shows the
-plate projected from the plate's camera (through its calibrated lens); a chrome CG sphere then
-reflects the real floor's colours where geometry says; hand-made phantom materials stay an
-option and come back untouched."""
+"""The plate on the phantoms: a phantom's albedo is estimated from the plate (plate / the phantoms
+rendered white), so shaded by the scene's lights it looks like the plate from the plate's camera
+(through its calibrated lens too); a chrome CG sphere then reflects the real floor's colours where
+geometry says; hand-made phantom materials stay an option and come back untouched."""
 import json
 import math
 
@@ -26,7 +26,7 @@ def _camera(bpy, scene):
     return cam
 
 
-def _floor(bpy, scene, size=40.0):
+def _floor(bpy, scene, size=400.0):
     s = size / 2
     mesh = bpy.data.meshes.new("Floor")
     mesh.from_pydata([(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [], [(0, 1, 2, 3)])
@@ -44,50 +44,57 @@ def _smooth_plate(path):
     return plate.astype(np.float32)
 
 
+def _sky(bpy, scene, value=1.0):
+    world = compat().new_world("Sky")
+    compat().node_tree(world).nodes["Background"].inputs[0].default_value = (value, value, value, 1.0)
+    scene.world = world
+
+
 def _probe_view(bpy, scene, path):
-    """Render what a probe's camera ray sees (scene.platelight.probe_render on), pixel centres
-    only (a 0.01-px box filter), without the composite."""
+    """Render what a camera ray sees (as a probe's would), pixel centres only (a 0.01-px box
+    filter), without the composite."""
     scene.render.engine = "CYCLES"
-    scene.cycles.samples = 1
+    scene.cycles.samples = 16
     scene.cycles.use_denoising = False
     scene.cycles.pixel_filter_type = "BOX"
     scene.cycles.filter_width = 0.01
     scene.render.use_compositing = False
     scene.render.film_transparent = False
-    scene.platelight.probe_render = True
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
-    scene.platelight.probe_render = False
     return read_exr(path)
 
 
 def test_phantom_shows_the_plate_to_probes(bpy_clean, tmp_path):
-    """Seen from the plate's camera by a probe ray, the phantom floor is the plate itself."""
+    """Seen from the plate's camera under the scene's light, the phantom floor is the plate itself
+    (its albedo times the light it gets: the plate divided and multiplied by the same shading)."""
     from platelight.operators.phantom_surface import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
     _camera(bpy, scene)
+    _sky(bpy, scene)
     floor = _floor(bpy, scene)
     plate = _smooth_plate(tmp_path / "plate.exr")
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
     scene.camera.data.shift_x, scene.camera.data.shift_y = 0.03, -0.02    # an off-centre lens
     assert apply_phantom_surfaces(scene, [floor]) == 1
     seen = _probe_view(bpy, scene, tmp_path / "seen.exr")
-    assert np.abs(seen - plate).max() < 2e-3, float(np.abs(seen - plate).max())
+    err = (np.abs(seen - plate) / plate)[2:-2, 2:-2]      # the rim: the denoiser's edge effects
+    assert np.median(err) < 2e-3 and err.max() < 2e-2, (float(np.median(err)), float(err.max()))
 
 
 def test_phantom_plate_goes_through_the_calibrated_lens(bpy_clean, tmp_path):
-    """With a distorted calibration the render camera is the overscan pinhole: a probe ray from
-    it sees the plate undistorted exactly as lens.undistort_to_render makes it (the shader's
-    OpenCV model against numpy's)."""
+    """With a distorted calibration the render camera is the overscan pinhole: from it the
+    phantom looks like the plate undistorted by lens.undistort_to_render."""
     from platelight.operators.phantom_surface import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
     _camera(bpy, scene)
+    _sky(bpy, scene)
     floor = _floor(bpy, scene)
     plate = _smooth_plate(tmp_path / "plate.exr")
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
@@ -104,9 +111,12 @@ def test_phantom_plate_goes_through_the_calibrated_lens(bpy_clean, tmp_path):
     u, v = frame.render_to_ideal(i, j)
     xd, yd = lens.distort_normalized((u - calib["cx"]) / calib["fx"], (v - calib["cy"]) / calib["fy"], calib["dist"])
     px, py = calib["fx"] * xd + calib["cx"], calib["fy"] * yd + calib["cy"]
-    inside = (px >= 0) & (px <= W - 1) & (py >= 0) & (py <= H - 1)
-    err = np.abs(seen - expected)[inside]
-    assert inside.mean() > 0.8 and err.max() < 1e-3, float(err.max())      # measured 4e-6 median
+    # (and a pixel in from the plate's rim, where the map's pixels are part plate, part nothing)
+    inside = (px >= 1) & (px <= W - 2) & (py >= 1) & (py <= H - 2)
+    inside[:2], inside[-2:], inside[:, :2], inside[:, -2:] = False, False, False, False
+    err = (np.abs(seen - expected) / expected)[inside]
+    # measured: median 0.16 %, max 0.8 % (the white render's noise)
+    assert inside.mean() > 0.75 and np.median(err) < 3e-3 and err.max() < 2e-2, (float(np.median(err)), float(err.max()))
 
 
 def _ground(cam_matrix, cam_data, scene):
@@ -146,9 +156,7 @@ def test_chrome_sphere_reflects_the_real_floor(bpy_clean, tmp_path, surface):
     plate = np.where(_red(ground)[..., None], np.array([0.7, 0.05, 0.05]), np.array([0.3, 0.3, 0.3]))
     write_exr(tmp_path / "plate.exr", plate.astype(np.float32))
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
-    world = compat().new_world("World")
-    compat().node_tree(world).nodes["Background"].inputs[0].default_value = (0.1, 0.1, 0.1, 1.0)
-    scene.world = world
+    _sky(bpy, scene, 1.0)     # the light the plate was shot under: floor albedo = plate
     bpy.ops.mesh.primitive_uv_sphere_add(radius=RADIUS, location=tuple(CENTRE), segments=64, ring_count=32)
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
@@ -187,12 +195,15 @@ def test_chrome_sphere_reflects_the_real_floor(bpy_clean, tmp_path, surface):
     redness = cg[..., 0] / np.maximum(cg[..., 1], 1e-4)
     if surface == "PLATE":
         assert floor.material_slots[0].link == "OBJECT"
-        # the mirror shows the plate's own colours (measured: exactly 0.7/0.05/0.05 and 0.3)
-        np.testing.assert_allclose(np.median(cg[..., :3][red_seen], 0), (0.7, 0.05, 0.05), rtol=0.02)
-        np.testing.assert_allclose(np.median(cg[..., :3][grey_seen], 0), 0.3, rtol=0.02)
+        # the mirror shows the plate's own colours, darkened only where the sphere keeps sky
+        # light off the floor (the real floor would be darker there too)
+        red_px, grey_px = np.median(cg[..., :3][red_seen], 0), np.median(cg[..., :3][grey_seen], 0)
+        # measured: (0.657, 0.047, 0.047) and 0.300
+        assert red_px[0] / red_px[1] > 8 and 0.6 < red_px[0] / 0.7 < 1.05
+        assert abs(grey_px[0] / grey_px[1] - 1) < 0.1 and 0.6 < grey_px[1] / 0.3 < 1.05
     else:                                                # the hand-made grey: no red anywhere
         assert floor.material_slots[0].link == "DATA" and floor.material_slots[0].material == grey
-        assert np.median(redness[red_seen]) < 1.3
+        assert np.median(redness[red_seen]) < 1.3      # the hand-made grey: no red anywhere
     # switching back gives the floor its own material again
     scene.platelight.phantom_surface = "MATERIAL"
     assert bpy.ops.platelight.setup_composite(samples=1) == {"FINISHED"}

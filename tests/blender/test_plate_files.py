@@ -84,7 +84,9 @@ CASES = {
     "tiff16": ("plate.tif", "sRGB", ("codes", 65535, 1.0)),
     "tiff_float": ("plate.tif", "Linear Rec.709", ("linear", 1, 1e-6)),
     "exr": ("plate.exr", "Linear Rec.709", ("linear", 1, 1e-6)),
-    "exr_acescg": ("plate.exr", "ACEScg", ("linear", 1, 2e-6)),   # measured 5e-7 (Bradford D60->D65)
+    # measured 5e-7 on 5.2 (its config: Bradford D60->D65); 5.5e-4 on 4.5, whose config's AP1
+    # matrix differs slightly
+    "exr_acescg": ("plate.exr", "ACEScg", ("linear", 1, 1e-3)),
 }
 
 
