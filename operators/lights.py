@@ -16,22 +16,10 @@ import tempfile
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty
-
-from ..addon import names
 from mathutils import Vector
 
-
-
-def world_probe_path(scene):
-    """The probe file: scene.platelight.world_probe, else the world's Environment Texture image."""
-    if scene.platelight.world_probe:
-        return bpy.path.abspath(scene.platelight.world_probe)
-    world = scene.world
-    if world is not None and world.node_tree is not None:
-        for node in world.node_tree.nodes:
-            if node.type == "TEX_ENVIRONMENT" and node.image is not None:
-                return bpy.path.abspath(node.image.filepath, library=node.image.library)
-    return ""
+from ..addon import names
+from .common import world_environment_node, world_probe_path
 
 
 def create_sun_lights(scene, lights, name_prefix="PlateLight"):
@@ -65,13 +53,6 @@ def _sunless_probe_path(scene, probe_path):
         folder = os.path.join(tempfile.gettempdir(), "platelight")
     stem = os.path.splitext(os.path.basename(probe_path))[0]
     return os.path.join(folder, f"{stem}_nosun.exr")
-
-
-def _world_environment_node(scene):
-    world = scene.world
-    if world is None or world.node_tree is None:
-        return None
-    return next((n for n in world.node_tree.nodes if n.type == "TEX_ENVIRONMENT"), None)
 
 
 class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
@@ -148,7 +129,7 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
         from ..addon.exr_io import write_exr
         from ..addon.ibl.lights import split_sun
 
-        node = _world_environment_node(scene)
+        node = world_environment_node(scene.world)
         if node is None:
             self.report({"ERROR"}, "Sun Lamp + Sky needs the probe in an Environment Texture of the "
                         "world; use Lamps Only instead.")

@@ -11,8 +11,8 @@ import numpy as np
 from ...addon import names
 from ...addon.bake import culling, needs
 from ...addon.bake.hashing import content_hash
+from ..common import world_background
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 
 
 # --------------------------------------------------------------------------- describing inputs
@@ -281,20 +281,11 @@ def environment_exr(world):
     """(EXR path, strength) when the world is exactly an equirectangular EXR image feeding a
     Background node into the World Output (no mapping, no colour nodes between); None when the
     world has to be rendered instead to get it right."""
-    tree = world.node_tree
-    if tree is None:
+    chain = world_background(world)
+    if chain is None:
         return None
-    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output]
-    if len(outputs) != 1 or not outputs[0].inputs["Surface"].is_linked:
-        return None
-    background = outputs[0].inputs["Surface"].links[0].from_node
-    if background.bl_idname != "ShaderNodeBackground" or background.inputs["Strength"].is_linked:
-        return None
-    color = background.inputs["Color"]
-    if not color.is_linked:
-        return None
-    env = color.links[0].from_node
-    if (env.bl_idname != "ShaderNodeTexEnvironment" or env.image is None
+    background, env = chain
+    if (env is None or background.inputs["Strength"].is_linked or env.image is None
             or env.inputs["Vector"].is_linked or env.projection != "EQUIRECTANGULAR"):
         return None
     image = env.image

@@ -23,7 +23,8 @@ from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
 from ...addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, write_maps
-from .inputs import (GEOMETRY_TYPES, Describer, environment_exr, maps_for, point_inside, probe_origin,
+from ..common import GEOMETRY_TYPES
+from .inputs import (Describer, environment_exr, maps_for, point_inside, probe_origin,
                      renderable, visible_in_probe, world_bounds, world_description)
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
 from .records import pack_maps, probe_hash, world_maps_hash
