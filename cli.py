@@ -22,6 +22,19 @@ SUBCOMMANDS = {
 }
 
 
+# How the command line names what an engine error asks for (PlateLightError.worded).
+FLAGS = {
+    "ball": "--ball CX,CY,R",
+    "calibration": "calibration file (--calibration)",
+    "dictionary": "--dictionary",
+    "dpi": "--dpi",
+    "exposures": "--exposures T1,T2,...",
+    "focal": "focal length (--focal-px or --focal-mm)",
+    "part": "--part",
+    "samples": "--samples",
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m platelight",
@@ -40,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except PlateLightError as err:
-        print(f"platelight {args.command}: error: {err}", file=sys.stderr)
+        print(f"platelight {args.command}: error: {err.worded(FLAGS)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"platelight {args.command}: interrupted; nothing half-written was left.", file=sys.stderr)

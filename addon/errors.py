@@ -2,5 +2,22 @@
 
 
 class PlateLightError(Exception):
-    """A problem with the user's input or environment (not a bug). ``str(err)`` is shown as is:
-    by the CLI on stderr with a non-zero exit status, by operators through ``self.report``."""
+    """A problem with the user's input or environment (not a bug), shown by the CLI on stderr with
+    a non-zero exit status and by operators through ``self.report``.
+
+    The engine does not know where it runs, so a sentence that tells the user what to give names
+    that input as ``{key}`` and ``inputs`` holds its plain wording (``str(err)``); each front end
+    puts in its own name with ``worded()``: the CLI its flag, an operator its field."""
+
+    def __init__(self, message: str, **inputs: str):
+        self.template = message
+        self.inputs = inputs
+        super().__init__(self.worded({}))
+
+    def worded(self, names: dict[str, str]) -> str:
+        """The sentence with the front end's ``names`` for the inputs it names (others stay plain).
+        Plain replacement, not str.format: file names in the sentence may hold braces."""
+        text = self.template
+        for key, plain in self.inputs.items():
+            text = text.replace("{" + key + "}", names.get(key, plain))
+        return text

@@ -6,7 +6,7 @@ import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProperty
 
 from ..addon import names
-from .common import NeedsScene
+from .common import NeedsScene, report_error
 
 
 
@@ -21,6 +21,14 @@ def _numbers(text: str, what: str, count=None):
     if count is not None and len(values) != count:
         raise PlateLightError(f"The {what} needs {count} comma-separated numbers, not '{text}'.")
     return values
+
+
+# How this operator's fields answer what a probe error asks for (PlateLightError.worded).
+PROBE_FIELDS = {
+    "ball": "the Ball Circle field (CX,CY,R in pixels)",
+    "exposures": "the Exposure Times field (seconds, one per bracket)",
+    "focal": "focal length (the Photo Lens field)",
+}
 
 
 class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
@@ -96,7 +104,7 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err, PROBE_FIELDS)
             return {"CANCELLED"}
         finally:
             wm.progress_end()

@@ -79,6 +79,18 @@ def addon_preferences(context):
     return addon.preferences if addon is not None else None
 
 
+# How operators name what an engine error asks for (PlateLightError.worded); an operator adds
+# its own fields with report_error(..., fields).
+FIELDS = {
+    "maps_folder": "in Scene > PlateLight > Maps Folder",
+}
+
+
+def report_error(operator, err, fields=None):
+    """Report a PlateLightError in Blender's words: fields and buttons, not command-line flags."""
+    operator.report({"ERROR"}, err.worded({**FIELDS, **(fields or {})}))
+
+
 class NeedsScene:
     """Operator mixin: available whenever there is a scene (says so when there is none)."""
 

@@ -19,7 +19,7 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty
 from mathutils import Vector
 
 from ..addon import names
-from .common import world_environment_node, world_probe_path
+from .common import report_error, world_environment_node, world_probe_path
 
 
 def create_sun_lights(scene, lights, name_prefix="PlateLight"):
@@ -106,7 +106,7 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
                 return self._sun_and_sky(scene, path, env)
             lights = probe_lights(env, self.count, self.detect_sun)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         made = create_sun_lights(scene, lights)
         if self.replace_world_lighting:

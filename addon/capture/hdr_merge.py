@@ -112,7 +112,8 @@ def read_brackets(paths, exposures=None) -> tuple[list[np.ndarray], np.ndarray]:
         missing = [os.path.basename(p) for p, t in zip(paths, times) if t is None]
         if missing:
             raise PlateLightError(
-                f"No EXIF exposure time in {', '.join(missing)}; give them with --exposures T1,T2,...")
+                f"No EXIF exposure time in {', '.join(missing)}; give them with {{exposures}}.",
+                exposures="the exposure times (seconds, one per bracket)")
     else:
         times = [float(t) for t in exposures]
         if len(times) != len(paths):

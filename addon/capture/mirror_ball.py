@@ -71,7 +71,8 @@ def find_ball(image: np.ndarray) -> Ball:
                                param1=60, param2=0.75, minRadius=int(min(h, w) * 0.08),
                                maxRadius=int(min(h, w) * 0.5))
     if circles is None or len(circles) == 0:
-        raise PlateLightError("No mirror ball was found in the brackets; give its circle with --ball CX,CY,R.")
+        raise PlateLightError("No mirror ball was found in the brackets; give its circle with {ball}.",
+                              ball="its centre and radius in pixels")
     # HOUGH_GRADIENT_ALT sorts by quality; take the best one and refine it.
     cx, cy, r = (float(v) for v in circles.reshape(-1, 3)[0])
     if shrink > 1:   # centre of a shrunk pixel -> full-resolution pixel coordinates

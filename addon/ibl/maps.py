@@ -63,7 +63,8 @@ class MapSettings:
         if self.sampling not in ("exact", "paper"):
             raise PlateLightError(f"Unknown sampling mode {self.sampling!r}; use 'exact' or 'paper'.")
         if self.sampling == "paper" and not 1 <= self.samples <= 50_000_000:
-            raise PlateLightError(f"--samples must be between 1 and 50,000,000, not {self.samples}.")
+            raise PlateLightError(f"{{samples}} must be between 1 and 50,000,000, not {self.samples}.",
+                                  samples="The number of samples")
         for name in ("glossy1_exponent", "glossy2_exponent"):
             value = getattr(self, name)
             if not (np.isfinite(value) and 0 <= value <= 100_000):
