@@ -1,5 +1,7 @@
 """Small helpers shared by PlateLight's operators (bpy): the plate and its colour management, the
 world's environment image, the add-on preferences, object kinds, the NeedsScene poll."""
+import os
+
 import bpy
 
 from ..addon import names
@@ -70,6 +72,17 @@ def world_probe_path(scene):
     if node is None or node.image is None:
         return ""
     return bpy.path.abspath(node.image.filepath, library=node.image.library)
+
+
+def data_folder(scene, name):
+    """Where PlateLight keeps data it makes for the scene (grain frames, a sun-less probe): the
+    folder ``name`` in the Maps Folder (next to the .blend by default). An unsaved file with a
+    relative Maps Folder keeps it beside Blender's own temporary files (bpy.app.tempdir, one per
+    Blender session, removed when Blender quits), never in a folder shared with other runs."""
+    maps_dir = scene.platelight.maps_dir
+    if maps_dir and (bpy.data.filepath or not maps_dir.startswith("//")):
+        return os.path.join(bpy.path.abspath(maps_dir), name)
+    return os.path.join(bpy.app.tempdir, "platelight", name)
 
 
 def addon_preferences(context):

@@ -13,7 +13,6 @@ wires an existing grain image again when it rebuilds the tree.
 """
 import os
 import re
-import tempfile
 
 import bpy
 from bpy.props import IntProperty
@@ -21,20 +20,14 @@ from bpy.props import IntProperty
 from ..addon import names
 from ..addon.footage import sequence_frame_path
 from ..node_groups.compositor_tree import differential_node, wire_grain
-from .common import NeedsScene, find_plate_image, report_error
+from .common import NeedsScene, data_folder, find_plate_image, report_error
 
 _GRAIN_FILE = re.compile(r"^grain_(\d+)\.exr$")
 
 
 def grain_folder(scene):
-    """<maps folder>/grain (scene.platelight.maps_dir, next to the .blend by default); a temporary
-    folder when the maps folder is relative and the file is unsaved."""
-    maps_dir = scene.platelight.maps_dir
-    if maps_dir and (bpy.data.filepath or not maps_dir.startswith("//")):
-        folder = bpy.path.abspath(maps_dir)
-    else:
-        folder = os.path.join(tempfile.gettempdir(), "platelight")
-    return os.path.join(folder, "grain")
+    """<maps folder>/grain (common.data_folder)."""
+    return data_folder(scene, "grain")
 
 
 def plate_frame_pixels(image, scene):

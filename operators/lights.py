@@ -11,7 +11,6 @@ With ``replace_world_lighting`` the world stops lighting diffuse surfaces (the l
 energy instead, no double counting) but is still seen in reflections.
 """
 import os
-import tempfile
 
 import bpy
 import numpy as np
@@ -19,7 +18,7 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty
 from mathutils import Vector
 
 from ..addon import names
-from .common import report_error, world_environment_node, world_probe_path
+from .common import data_folder, report_error, world_environment_node, world_probe_path
 
 
 def create_sun_lights(scene, lights, name_prefix="PlateLight"):
@@ -48,11 +47,8 @@ def create_sun_lights(scene, lights, name_prefix="PlateLight"):
 
 
 def _sunless_probe_path(scene, probe_path):
-    folder = bpy.path.abspath(scene.platelight.maps_dir) if bpy.data.filepath else ""
-    if not folder:
-        folder = os.path.join(tempfile.gettempdir(), "platelight")
     stem = os.path.splitext(os.path.basename(probe_path))[0]
-    return os.path.join(folder, f"{stem}_nosun.exr")
+    return os.path.join(data_folder(scene, "lights"), f"{stem}_nosun.exr")
 
 
 class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):

@@ -16,7 +16,6 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "design.md").is_file()),
               REPO.parent / "shared")
 GRACE = SHARED / "data" / "probes" / "grace_latlong.exr"
-EXT_MODULE = "bl_ext.dev.platelight"
 
 _SHIM = pathlib.Path(tempfile.gettempdir()) / (
     "platelight-shim-" + hashlib.sha1(str(REPO).encode()).hexdigest()[:10])
@@ -34,6 +33,7 @@ def _install_shim() -> None:
 
 
 _install_shim()
+from platelight.drivers.headless import EXT_MODULE  # noqa: E402  (the checkout just put on the path)
 
 
 def cli_env() -> dict:
