@@ -85,10 +85,11 @@ def _remove_probe(maps_dir):
     """The preview's temporary maps: their probe group, its images and the folder."""
     group = find_probe_group(maps_dir)
     if group is not None:
-        images = [n.image for n in group.nodes if getattr(n, "image", None) is not None]
+        images = {n.image.name for n in group.nodes if getattr(n, "image", None) is not None}
         bpy.data.node_groups.remove(group)
-        for image in images:
-            if image.users == 0:
+        for name in images:            # each map feeds several nodes: one name, removed once
+            image = bpy.data.images.get(name)
+            if image is not None and image.users == 0:
                 bpy.data.images.remove(image)
     shutil.rmtree(maps_dir, ignore_errors=True)
 
