@@ -25,6 +25,7 @@ GRAIN_NODE = "PlateLight Grain"
 
 # --- lights, tracking, world probe, bake
 LIGHTS_COLLECTION = "PlateLight Lights"
+LIGHT_PREFIX = "PlateLight"                # + " Sun" / " Sky 00": the lamps made from the probe
 TRACK_CAMERA = "PlateLight Camera"
 MARKER_PLANE = "PlateLight Marker Plane"
 WORLD = "PlateLight World"

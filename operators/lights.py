@@ -21,7 +21,7 @@ from ..addon import names
 from .common import data_folder, report_error, world_environment_node, world_probe_path
 
 
-def create_sun_lights(scene, lights, name_prefix="PlateLight"):
+def create_sun_lights(scene, lights, name_prefix=names.LIGHT_PREFIX):
     """Replace the contents of the "PlateLight Lights" collection by sun lamps for ``lights``."""
     coll = bpy.data.collections.get(names.LIGHTS_COLLECTION) or bpy.data.collections.new(names.LIGHTS_COLLECTION)
     if coll.name not in scene.collection.children:

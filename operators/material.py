@@ -9,6 +9,7 @@ from bl_operators.presets import AddPresetBase
 from bpy.props import EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
+from ..addon import names
 from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS
 from ..addon.material.presets import PRESET_SUBDIR, preset_label, preset_names, preset_params
@@ -119,7 +120,7 @@ class PLATELIGHT_OT_sbrdf_preset_add(_OnActiveSBRDFMaterial, AddPresetBase, bpy.
     bl_label = "Add SBRDF Preset"
     preset_menu = "PLATELIGHT_MT_sbrdf_presets"
     preset_subdir = PRESET_SUBDIR
-    preset_defines = ["node = bpy.context.material.node_tree.nodes['PlateLight SBRDF']"]
+    preset_defines = [f"node = bpy.context.material.node_tree.nodes[{names.SBRDF_GROUP!r}]"]
     preset_values = [f"node.inputs[{spec.label!r}].default_value" for spec in PARAMETERS]
 
 
