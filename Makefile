@@ -4,8 +4,11 @@ SHELL := /bin/bash
 # BLENDER picks the Blender release the suite runs on (requirements/blender-X.Y.txt); 5.2 LTS is
 # the default. Each release has its own virtual environment: .venv for the default, .venv-X.Y else.
 BLENDER ?= 5.2
-PY_VERSION := $(if $(filter 4.5 5.0,$(BLENDER)),3.11,3.13)
 REQUIREMENTS := requirements/blender-$(BLENDER).txt
+# The Python the release's bpy wheel is built for, from the first line of its requirements file.
+PY_VERSION := $(shell sed -n '1s/.*built for Python \([0-9]*\.[0-9]*\).*/\1/p' $(REQUIREMENTS) 2>/dev/null)
+# Wheels whose metadata conflicts with the release's pins but that run there (see the file).
+NO_DEPS := $(wildcard requirements/blender-$(BLENDER)-no-deps.txt)
 VENV ?= $(if $(filter 5.2,$(BLENDER)),.venv,.venv-$(BLENDER))
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.platelight-stamp
@@ -16,10 +19,11 @@ PYTEST_ARGS ?=
 
 venv: $(STAMP)
 
-$(STAMP): $(REQUIREMENTS)
-	@test -f $(REQUIREMENTS) || { echo "No $(REQUIREMENTS): BLENDER must be one of $$(ls requirements | sed -n 's/blender-\(.*\)\.txt/\1/p' | xargs)" >&2; exit 1; }
+$(STAMP): $(wildcard $(REQUIREMENTS)) $(NO_DEPS)
+	@test -f $(REQUIREMENTS) || { echo "No $(REQUIREMENTS): BLENDER must be one of $$(ls requirements | sed -n 's/^blender-\([0-9.]*\)\.txt$$/\1/p' | xargs)" >&2; exit 1; }
 	test -x $(PY) || $${PY_SYS:-$$(bash tools/find-python.sh $(PY_VERSION))} -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -r $(REQUIREMENTS)
+	$(if $(NO_DEPS),$(PY) -m pip install -q --disable-pip-version-check --no-deps -r $(NO_DEPS))
 	bash tools/ensure-system-deps.sh $(VENV)
 	# `python -m platelight` from any folder: the checkout itself is the package. The site folder
 	# is asked for in the shell: make expands a recipe before running its first line (no venv yet).

@@ -3,4 +3,9 @@ import sys
 
 from .cli import main
 
-sys.exit(main())
+code = main()
+if "bpy" in sys.modules:        # a subcommand ran Blender: its version may need another exit
+    from . import compat
+
+    compat.exit_process(code)
+sys.exit(code)

@@ -9,6 +9,7 @@ import importlib
 import sys
 
 from .addon.errors import PlateLightError
+from .addon.wording import CLI_FLAGS as FLAGS
 
 # subcommand -> module (relative to this package) that defines add_parser(); the engine's
 # commands run without Blender, the drivers' start headless Blender (drivers/headless.py)
@@ -19,19 +20,7 @@ SUBCOMMANDS = {
     "probe": ".addon.capture.cli_probe",
     "bake": ".drivers.bake",
     "render": ".drivers.render",
-}
-
-
-# How the command line names what an engine error asks for (PlateLightError.worded).
-FLAGS = {
-    "ball": "--ball CX,CY,R",
-    "calibration": "calibration file (--calibration)",
-    "dictionary": "--dictionary",
-    "dpi": "--dpi",
-    "exposures": "--exposures T1,T2,...",
-    "focal": "focal length (--focal-px or --focal-mm)",
-    "part": "--part",
-    "samples": "--samples",
+    "farm-job": ".drivers.farm_job",
 }
 
 

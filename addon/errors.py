@@ -1,4 +1,5 @@
 """The one exception type a user ever sees: its message is a single clear sentence."""
+from .wording import fill
 
 
 class PlateLightError(Exception):
@@ -7,17 +8,13 @@ class PlateLightError(Exception):
 
     The engine does not know where it runs, so a sentence that tells the user what to give names
     that input as ``{key}`` and ``inputs`` holds its plain wording (``str(err)``); each front end
-    puts in its own name with ``worded()``: the CLI its flag, an operator its field."""
+    puts in its own name with ``worded()``: the CLI its flag, an operator its field (wording.py)."""
 
     def __init__(self, message: str, **inputs: str):
         self.template = message
         self.inputs = inputs
-        super().__init__(self.worded({}))
+        super().__init__(fill(message, inputs, {}))
 
     def worded(self, names: dict[str, str]) -> str:
-        """The sentence with the front end's ``names`` for the inputs it names (others stay plain).
-        Plain replacement, not str.format: file names in the sentence may hold braces."""
-        text = self.template
-        for key, plain in self.inputs.items():
-            text = text.replace("{" + key + "}", names.get(key, plain))
-        return text
+        """The sentence with the front end's ``names`` for the inputs it names (others stay plain)."""
+        return fill(self.template, self.inputs, names)

@@ -1,7 +1,8 @@
 """OpenEXR reading and writing (float32), with clear errors and atomic replacement.
 
-Reads RGB, RGBA, Y (grey), half or float, scanline or tiled, returning float32 arrays of shape
-(H, W, C) whose first row is the top of the image. Writes float32 RGB(A) with ZIP compression
+Reads RGB, RGBA, Y (grey), half, float or uint, scanline or tiled, single- or multi-part, plain
+or layered channel names (``diffuse.R``, ``ViewLayer.Combined.R``: the picture's layer is
+chosen), returning float32 arrays of shape (H, W, C) whose first row is the top of the image. Writes float32 RGB(A) with ZIP compression
 (float, not half: half overflows at 65504 and a visible sun is brighter).
 """
 from __future__ import annotations
@@ -33,17 +34,17 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB") -> np.ndarray:
         raise PlateLightError(f"Not an OpenEXR file (wrong magic number): {path}")
     try:
         exr = OpenEXR.File(path, separate_channels=True)
-        part_channels = exr.channels()
+        parts = [{name: ch.pixels for name, ch in part.channels.items()} for part in exr.parts]
     except Exception as exc:  # the library raises RuntimeError / ValueError for truncated data
         raise PlateLightError(f"Cannot read EXR (truncated or corrupt): {path} ({exc})") from None
-
-    planes = {name.split(".")[-1].upper(): ch.pixels for name, ch in part_channels.items()}
+    planes = _choose_layer(parts)
+    if planes is None:
+        found = sorted({n for part in parts for n in part})
+        raise PlateLightError(f"EXR has no R, G, B or Y channels (found {', '.join(found[:12])}): {path}")
     if all(k in planes for k in "RGB"):
         rgb = [planes["R"], planes["G"], planes["B"]]
-    elif "Y" in planes:
-        rgb = [planes["Y"]] * 3
     else:
-        raise PlateLightError(f"EXR has no R, G, B or Y channels (found {sorted(planes)}): {path}")
+        rgb = [planes["Y"]] * 3
     if channels == "RGBA":
         alpha = planes.get("A")
         rgb.append(alpha if alpha is not None else np.ones_like(rgb[0]))
@@ -53,6 +54,32 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB") -> np.ndarray:
     if len(shapes) != 1:
         raise PlateLightError(f"EXR channels have different sizes (subsampled channels): {path}")
     return np.stack([np.asarray(p, dtype=np.float32) for p in rgb], axis=-1)
+
+
+# Layer names that hold the picture in renderers' multi-layer files, most likely first.
+PICTURE_LAYERS = ("", "rgba", "rgb", "combined", "beauty", "image", "color", "colour")
+
+
+def _choose_layer(parts: list[dict]) -> dict | None:
+    """The channels {"R": plane, ...} of the layer that holds the picture: the unnamed layer,
+    else a Combined/beauty/RGBA-like one (Blender's "ViewLayer.Combined.R"), else the first
+    layer with R, G, B or Y, over all parts of a multi-part file."""
+    layers: dict[str, dict] = {}
+    for part in parts:
+        for name, pixels in part.items():
+            layer, _, channel = name.rpartition(".")
+            channel = channel.upper()
+            if channel in ("R", "G", "B", "A", "Y"):
+                layers.setdefault(layer, {}).setdefault(channel, pixels)
+    usable = {k: v for k, v in layers.items() if all(c in v for c in "RGB") or "Y" in v}
+    if not usable:
+        return None
+
+    def rank(layer: str):
+        last = layer.rpartition(".")[2].lower()
+        return (PICTURE_LAYERS.index(last) if last in PICTURE_LAYERS else len(PICTURE_LAYERS),
+                not all(c in usable[layer] for c in "RGB"), list(layers).index(layer))
+    return usable[min(usable, key=rank)]
 
 
 def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:

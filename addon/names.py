@@ -12,6 +12,7 @@ PROBE_NODE = "PlateLight Probe"             # the material's node holding that g
 DIFFERENTIAL_GROUP = "PlateLight Differential"   # the compositor group; also the node's name
 COMPOSITOR_TREE = "PlateLight Composite"
 PASSES_NODE = "PlateLight Passes"           # File Output node of the CG, Shadows and Plate passes
+PASS_FILES_NODE = "PlateLight Pass Files"   # File Output node behind render --format multilayer
 CG_COLLECTION = "PlateLight CG"
 PHANTOM_COLLECTION = "PlateLight Phantoms"
 LAYER_CG = "PlateLight CG"                  # view layers of the differential method

@@ -9,6 +9,7 @@ import sys
 
 from ..addon.bake.frames import parse_frames, parse_part, split_frames
 from ..addon.errors import PlateLightError
+from ..addon.farm.progress import Progress, blender_output
 from .headless import check_blend, import_bpy, open_blend, stdout_to_stderr
 
 
@@ -27,6 +28,8 @@ def add_parser(sub):
     parser.add_argument("--no-cull", action="store_true", help="bake objects that are off screen too")
     parser.add_argument("--samples", type=int, help="Cycles samples per probe (default: the scene's)")
     parser.add_argument("--height", type=int, help="probe height in pixels (default: the scene's)")
+    parser.add_argument("--quiet", action="store_true", help="farm logs: drop Blender's own render log "
+                        "(Cycles' 'Saved:' lines); keep PlateLight's progress lines")
     parser.add_argument("--save", action="store_true",
                         help="save the .blend afterwards (records each object's probe folder and status)")
     parser.set_defaults(func=run)
@@ -51,7 +54,8 @@ def run(args):
     bpy = import_bpy()
     root = __package__.rsplit(".", 1)[0]
     package = importlib.import_module(root)
-    open_blend(bpy, blend)
+    with blender_output(args.quiet):
+        open_blend(bpy, blend)
     registered = hasattr(bpy.types.Object, "platelight") and hasattr(bpy.ops.platelight, "bake_probes")
     if not registered:
         package.register()
@@ -71,10 +75,13 @@ def run(args):
     else:
         objects = bake.target_objects(context, all_objects=True)
 
-    def progress(done, total):
-        print(f"platelight bake: {done}/{total}", file=sys.stderr, flush=True)
+    steps = Progress("bake", 0, unit="probe")
 
-    with stdout_to_stderr():      # Blender's render log; stdout keeps only the summary
+    def progress(done, total):
+        steps.total, steps.stream = total, log
+        steps.step(f"probe {done}")
+
+    with blender_output(args.quiet) as log:    # Blender's render log; stdout keeps only the summary
         job = bake.bake_probes(context, objects, frames or [scene.frame_current], static=frames is None,
                                use_cache=not args.force, cull=not args.no_cull, progress=progress)
     for warning in job.warnings:

@@ -39,7 +39,9 @@ SBRDF_PRESETS = {"CG Plaster Sphere": "marble", "CG Chrome Sphere": "chrome"}
 
 
 def _material(bpy, name, colour, roughness=0.5, metallic=0.0, checker=None):
-    mat = bpy.data.materials.new(name)
+    from .. import compat     # bpy glue: imported once Blender runs
+
+    mat = compat.new_material(name)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     bsdf = nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
@@ -124,7 +126,9 @@ def build_real_place(bpy, hdri_path, frames=FRAMES, size=SIZE):
     scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     scene.frame_start, scene.frame_end = 1, frames
-    world = bpy.data.worlds.new("Real Place")
+    from .. import compat
+
+    world = compat.new_world("Real Place")
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdri_path)
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
@@ -237,7 +241,7 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
     bpy.ops.platelight.setup_composite(method="CATCHER", samples=COMPOSITE_SAMPLES, denoise_shadows=True)
     from importlib import import_module
 
-    add_pass_outputs = import_module(f"{EXT_MODULE}.node_groups.compositor_tree").add_pass_outputs
+    compositor_tree = import_module(f"{EXT_MODULE}.node_groups.compositor_tree")
 
     # 3. render the composites (each file appears complete or not at all)
     t0 = time.perf_counter()
@@ -248,12 +252,13 @@ def run_ar_demo(out_dir, hdri: str = HDRI, frames: int = FRAMES, size=SIZE) -> d
         scene.frame_set(frame)
         pass_dir = out / "passes" / f"{frame:04d}"
         pass_dir.mkdir(parents=True, exist_ok=True)
-        add_pass_outputs(scene, str(pass_dir) + "/")
+        compositor_tree.add_pass_outputs(scene, str(pass_dir) + "/")
         exr = comp_dir / f"composite_{frame:04d}.exr"
         _render_still(bpy, scene, str(exr))
         composite = read_exr(exr)
         write_png(comp_dir / f"composite_{frame:04d}.png", linear_to_srgb8(composite))
-        passes = {n: read_exr(pass_dir / f"{n}.exr", "RGBA") for n in ("Plate", "CG", "Shadows")}
+        passes = {n: read_exr(compositor_tree.pass_output_path(scene, str(pass_dir), n), "RGBA")
+                  for n in ("Plate", "CG", "Shadows")}
         rows.append([("plate", linear_to_srgb8(passes["Plate"][..., :3])),
                      ("CG", linear_to_srgb8(passes["CG"][..., :3])),
                      ("shadows (ratio)", linear_to_srgb8(np.clip(passes["Shadows"][..., :3], 0, 1))),

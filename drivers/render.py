@@ -8,15 +8,16 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 
 from ..addon.bake.frames import parse_frames, parse_part, split_frames
 from ..addon.errors import PlateLightError
+from ..addon.farm.progress import Progress, blender_output
 from ..addon.fileio import ensure_writable_folder, stale_temps, temp_path
 from ..addon.render_files import commit, frame_path, plan
 from .headless import check_blend, import_bpy, open_blend, stdout_to_stderr
 
-FORMATS = {"exr": ("OPEN_EXR", ".exr"), "png": ("PNG", ".png")}
+FORMATS = {"exr": ("OPEN_EXR", ".exr"), "png": ("PNG", ".png"),
+           "multilayer": ("OPEN_EXR", ".exr")}   # composite + named passes (addon/farm/multilayer.py)
 
 
 def add_parser(sub):
@@ -34,9 +35,12 @@ def add_parser(sub):
                         "the frames (one per machine)")
     parser.add_argument("--name", default="composite", help="file name prefix (default: composite)")
     parser.add_argument("--format", choices=sorted(FORMATS), default="exr",
-                        help="exr: float32 RGBA OpenEXR (default); png: 8-bit RGBA")
+                        help="exr: float32 RGBA OpenEXR (default); png: 8-bit RGBA; multilayer: the "
+                        "composite and named passes (CG, Shadows, Holdout, Depth, Normal, Cryptomatte)")
     parser.add_argument("--samples", type=int, help="Cycles samples per pixel (default: the scene's)")
     parser.add_argument("--force", action="store_true", help="render frames that are already complete too")
+    parser.add_argument("--quiet", action="store_true", help="farm logs: drop Blender's own render log "
+                        "(Cycles' 'Saved:' lines); keep PlateLight's progress lines")
     parser.set_defaults(func=run)
 
 
@@ -55,7 +59,8 @@ def run(args):
     file_format, ext = FORMATS[args.format]
 
     bpy = import_bpy()
-    open_blend(bpy, blend)
+    with blender_output(args.quiet):
+        open_blend(bpy, blend)
     scene = bpy.context.scene
     if scene.camera is None:
         raise PlateLightError(f"The scene {scene.name} has no camera to render from.")
@@ -84,17 +89,24 @@ def run(args):
     for frame in broken:
         print(f"platelight render: warning: {os.path.basename(frame_path(folder, args.name, frame, ext))} "
               "is incomplete (an interrupted earlier render); rendering it again.", file=sys.stderr)
-    for done, frame in enumerate(to_render, 1):
+    passes = None
+    if args.format == "multilayer":
+        from ..node_groups.passes import MultilayerPasses
+
+        passes = MultilayerPasses(scene)
+    progress = Progress("render", len(to_render))
+    for frame in to_render:
         final = frame_path(folder, args.name, frame, ext)
         for old in stale_temps(final):
             os.unlink(old)
         tmp = temp_path(final)
-        t0 = time.perf_counter()
         try:
-            with stdout_to_stderr():
+            with blender_output(args.quiet):
                 scene.frame_set(frame)
                 render.filepath = tmp
                 bpy.ops.render.render(write_still=True)
+            if passes is not None:
+                passes.join(frame, tmp)
             commit(tmp, final)
         except RuntimeError as exc:
             raise PlateLightError(f"Blender could not render frame {frame}: "
@@ -104,8 +116,9 @@ def run(args):
         finally:
             if os.path.exists(tmp):
                 os.unlink(tmp)
-        print(f"platelight render: frame {frame} ({done}/{len(to_render)}) "
-              f"{time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+        progress.step(f"frame {frame}")
+    if passes is not None:
+        passes.close()
     summary = f"PlateLight: rendered {len(to_render)} frame(s)"
     if kept:
         summary += f", kept {len(kept)} complete"

@@ -14,12 +14,13 @@ Grain: the plate's grain at its reference level (Grain Level), made by plateligh
 (addon/compositing/grain.py); r = Grain Response, the signal-dependent part of its variance, so
 the grain's variance follows var(L) = a + b·L at the CG's own level L.
 
-Blender 5.0: compositor groups are node trees of type CompositorNodeTree; Mix and Math are the
-shader-style nodes; node options such as the Glare type are menu input sockets (design.md).
+Compositor groups are node trees of type CompositorNodeTree; the Mix and Math nodes and how node
+options are set (menu sockets on 5.x, properties on 4.5) come from compat.py.
 The builder is idempotent: re-running it rebuilds the same group in place (users keep it).
 """
 import bpy
 
+from .. import compat
 from ..addon import names
 
 RATIO_EPSILON = 1e-6
@@ -59,24 +60,22 @@ OUTPUTS = (
 
 
 def _mix(nodes, links, blend, a, b, factor=1.0, location=(0, 0), clamp=False):
-    node = nodes.new("ShaderNodeMix")
-    node.data_type = "RGBA"
-    node.blend_type = blend
-    node.clamp_result = clamp
-    node.location = location
-    node.inputs[0].default_value = factor
-    for socket, value in ((node.inputs[6], a), (node.inputs[7], b)):
+    """A colour mix (compat.Mix: node, factor, a, b, result); a and b are sockets or values."""
+    mix = compat.compositor_mix(nodes, blend, clamp)
+    mix.node.location = location
+    mix.factor.default_value = factor
+    for socket, value in ((mix.a, a), (mix.b, b)):
         if isinstance(value, bpy.types.NodeSocket):
             links.new(value, socket)
         elif isinstance(value, (int, float)):
             socket.default_value = (value, value, value, 1.0)
         else:
             socket.default_value = value
-    return node
+    return mix
 
 
-def _link_factor(links, node, socket):
-    links.new(socket, node.inputs[0])
+def _link_factor(links, mix, socket):
+    links.new(socket, mix.factor)
 
 
 def _rebuild_interface(tree):
@@ -99,35 +98,33 @@ def _grain(nodes, links, inp, cg):
     alpha = nodes.new("CompositorNodeSeparateColor")
     alpha.location = (x, y)
     links.new(cg, alpha.inputs["Image"])
-    safe_alpha = nodes.new("ShaderNodeMath")
-    safe_alpha.operation = "MAXIMUM"
+    safe_alpha = compat.compositor_math(nodes, "MAXIMUM")
     safe_alpha.location = (x, y - 200)
     links.new(alpha.outputs["Alpha"], safe_alpha.inputs[0])
     safe_alpha.inputs[1].default_value = RATIO_EPSILON
     straight = _mix(nodes, links, "DIVIDE", cg, safe_alpha.outputs[0], location=(x + 200, y))
     safe_level = _mix(nodes, links, "LIGHTEN", inp["Grain Level"], RATIO_EPSILON, location=(x + 200, y - 200))
-    relative = _mix(nodes, links, "DIVIDE", straight.outputs[2], safe_level.outputs[2], location=(x + 400, y))
-    minus_one = _mix(nodes, links, "SUBTRACT", relative.outputs[2], 1.0, location=(x + 600, y))
-    weighted = _mix(nodes, links, "MULTIPLY", minus_one.outputs[2], inp["Grain Response"], location=(x + 800, y))
-    ratio = _mix(nodes, links, "ADD", weighted.outputs[2], 1.0, location=(x + 1000, y))
-    ratio = _mix(nodes, links, "LIGHTEN", ratio.outputs[2], 0.0, location=(x + 1200, y))
+    relative = _mix(nodes, links, "DIVIDE", straight.result, safe_level.result, location=(x + 400, y))
+    minus_one = _mix(nodes, links, "SUBTRACT", relative.result, 1.0, location=(x + 600, y))
+    weighted = _mix(nodes, links, "MULTIPLY", minus_one.result, inp["Grain Response"], location=(x + 800, y))
+    ratio = _mix(nodes, links, "ADD", weighted.result, 1.0, location=(x + 1000, y))
+    ratio = _mix(nodes, links, "LIGHTEN", ratio.result, 0.0, location=(x + 1200, y))
     channels = nodes.new("CompositorNodeSeparateColor")
     channels.location = (x + 1400, y)
-    links.new(ratio.outputs[2], channels.inputs["Image"])
+    links.new(ratio.result, channels.inputs["Image"])
     scale = nodes.new("CompositorNodeCombineColor")
     scale.location = (x + 1800, y)
     for k, channel in enumerate(("Red", "Green", "Blue")):
-        root = nodes.new("ShaderNodeMath")
-        root.operation = "SQRT"
+        root = compat.compositor_math(nodes, "SQRT")
         root.location = (x + 1600, y - 60 * k)
         links.new(channels.outputs[channel], root.inputs[0])
         links.new(root.outputs[0], scale.inputs[channel])
     scaled = _mix(nodes, links, "MULTIPLY", inp["Grain"], scale.outputs["Image"], location=(x + 2000, y - 200))
-    covered = _mix(nodes, links, "MULTIPLY", scaled.outputs[2], alpha.outputs["Alpha"], location=(x + 2200, y - 200))
+    covered = _mix(nodes, links, "MULTIPLY", scaled.result, alpha.outputs["Alpha"], location=(x + 2200, y - 200))
     # a colour mix keeps A's (the CG's) alpha
-    grained = _mix(nodes, links, "ADD", cg, covered.outputs[2], location=(x + 2400, y))
-    links.new(inp["Grain Amount"], grained.inputs[0])
-    return grained.outputs[2]
+    grained = _mix(nodes, links, "ADD", cg, covered.result, location=(x + 2400, y))
+    links.new(inp["Grain Amount"], grained.factor)
+    return grained.result
 
 
 def build_differential_group():
@@ -151,16 +148,16 @@ def build_differential_group():
     links.new(inp["CG Exposure"], exposure.inputs["Exposure"])
     # Reinhard x/(1+x) per channel; alpha is carried by the original CG below
     one_plus = _mix(nodes, links, "ADD", exposure.outputs["Image"], 1.0, location=(-700, 400))
-    reinhard = _mix(nodes, links, "DIVIDE", exposure.outputs["Image"], one_plus.outputs[2], location=(-500, 400))
-    toned = _mix(nodes, links, "MIX", exposure.outputs["Image"], reinhard.outputs[2], location=(-300, 300))
+    reinhard = _mix(nodes, links, "DIVIDE", exposure.outputs["Image"], one_plus.result, location=(-500, 400))
+    toned = _mix(nodes, links, "MIX", exposure.outputs["Image"], reinhard.result, location=(-300, 300))
     _link_factor(links, toned, inp["Tone Map"])
     glare = nodes.new("CompositorNodeGlare")
     glare.location = (-100, 450)
-    glare.inputs["Type"].default_value = "Bloom"
-    glare.inputs["Quality"].default_value = "Medium"
-    links.new(toned.outputs[2], glare.inputs["Image"])
+    compat.set_option(glare, "Type", "Bloom")
+    compat.set_option(glare, "Quality", "Medium")
+    links.new(toned.result, glare.inputs["Image"])
     links.new(inp["Glare Threshold"], glare.inputs["Threshold"])
-    glared = _mix(nodes, links, "MIX", toned.outputs[2], glare.outputs["Image"], location=(100, 300))
+    glared = _mix(nodes, links, "MIX", toned.result, glare.outputs["Image"], location=(100, 300))
     _link_factor(links, glared, inp["Glare"])
     # colour mixes keep A's alpha: put the CG's own alpha back explicitly
     cg_alpha = nodes.new("CompositorNodeSeparateColor")
@@ -168,39 +165,40 @@ def build_differential_group():
     links.new(inp["CG"], cg_alpha.inputs["Image"])
     cg_out = nodes.new("CompositorNodeSetAlpha")
     cg_out.location = (300, 300)
-    cg_out.inputs["Type"].default_value = "Replace Alpha"
-    links.new(glared.outputs[2], cg_out.inputs["Image"])
+    compat.set_option(cg_out, "Type", "Replace Alpha")
+    links.new(glared.result, cg_out.inputs["Image"])
     links.new(cg_alpha.outputs["Alpha"], cg_out.inputs["Alpha"])
 
     # --- the CG's effect on the real scene ---
     safe_without = _mix(nodes, links, "LIGHTEN", inp["Without"], RATIO_EPSILON, location=(-700, -200))
-    ratio = _mix(nodes, links, "DIVIDE", inp["With"], safe_without.outputs[2], location=(-500, -200))
+    ratio = _mix(nodes, links, "DIVIDE", inp["With"], safe_without.result, location=(-500, -200))
     clamp_colour = nodes.new("CompositorNodeCombineColor")
     clamp_colour.location = (-700, -400)
     for channel in ("Red", "Green", "Blue"):
         links.new(inp["Shadow Clamp"], clamp_colour.inputs[channel])
-    clamped = _mix(nodes, links, "DARKEN", ratio.outputs[2], clamp_colour.outputs["Image"], location=(-300, -200))
-    scaled = _mix(nodes, links, "MULTIPLY", inp["Plate"], clamped.outputs[2], location=(-100, -200))
+    clamped = _mix(nodes, links, "DARKEN", ratio.result, clamp_colour.outputs["Image"], location=(-300, -200))
+    scaled = _mix(nodes, links, "MULTIPLY", inp["Plate"], clamped.result, location=(-100, -200))
     difference = _mix(nodes, links, "SUBTRACT", inp["With"], inp["Without"], location=(-500, -500))
-    added = _mix(nodes, links, "ADD", inp["Plate"], difference.outputs[2], location=(-100, -500))
-    local = _mix(nodes, links, "MIX", added.outputs[2], scaled.outputs[2], location=(100, -300))
+    added = _mix(nodes, links, "ADD", inp["Plate"], difference.result, location=(-100, -500))
+    local = _mix(nodes, links, "MIX", added.result, scaled.result, location=(100, -300))
     _link_factor(links, local, inp["Ratio Form"])
-    shadows_additive = _mix(nodes, links, "ADD", difference.outputs[2], 1.0, location=(-300, -600))
-    shadows = _mix(nodes, links, "MIX", shadows_additive.outputs[2], clamped.outputs[2], location=(100, -600))
+    shadows_additive = _mix(nodes, links, "ADD", difference.result, 1.0, location=(-300, -600))
+    shadows = _mix(nodes, links, "MIX", shadows_additive.result, clamped.result, location=(100, -600))
     _link_factor(links, shadows, inp["Ratio Form"])
 
     blur = nodes.new("CompositorNodeBlur")
     blur.location = (500, 300)
-    blur.inputs["Type"].default_value = "Gaussian"
+    compat.set_option(blur, "Type", "Gaussian")
     links.new(cg_out.outputs["Image"], blur.inputs["Image"])
     links.new(inp["CG Blur"], blur.inputs["Size"])
     cg_final = _grain(nodes, links, inp, blur.outputs["Image"])
 
     over = nodes.new("CompositorNodeAlphaOver")
     over.location = (3300, 0)
-    links.new(local.outputs[2], over.inputs["Background"])
-    links.new(cg_final, over.inputs["Foreground"])
+    background, foreground = compat.alpha_over_inputs(over)
+    links.new(local.result, background)
+    links.new(cg_final, foreground)
     links.new(over.outputs["Image"], group_out.inputs["Image"])
     links.new(cg_final, group_out.inputs["CG"])
-    links.new(shadows.outputs[2], group_out.inputs["Shadows"])
+    links.new(shadows.result, group_out.inputs["Shadows"])
     return tree

@@ -4,6 +4,7 @@ that platelight.match_grain made, wired into the group; and the File Output of t
 Rebuilt in place by platelight.setup_composite (operators/composite.py)."""
 import bpy
 
+from .. import compat
 from ..addon import names
 from .composite import build_differential_group
 
@@ -11,12 +12,7 @@ from .composite import build_differential_group
 def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
     """The scene's compositor tree (rebuilt in place): plate + render layers -> group -> output."""
     group = build_differential_group()
-    tree = bpy.data.node_groups.get(names.COMPOSITOR_TREE)
-    if tree is None or tree.bl_idname != "CompositorNodeTree":
-        tree = bpy.data.node_groups.new(names.COMPOSITOR_TREE, "CompositorNodeTree")
-    tree.nodes.clear()
-    tree.interface.clear()
-    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    tree = compat.new_compositor_tree(scene, names.COMPOSITOR_TREE)
     nodes, links = tree.nodes, tree.links
 
     plate = nodes.new("CompositorNodeImage")
@@ -55,8 +51,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             links.new(socket_b_or_value, sep_b.inputs["Image"])
         result = None
         for k, channel in enumerate(("Red", "Green", "Blue")):
-            cmp = nodes.new("ShaderNodeMath")
-            cmp.operation = "COMPARE"
+            cmp = compat.compositor_math(nodes, "COMPARE")
             cmp.location = (x + 150, y - 60 * k)
             links.new(sep_a.outputs[channel], cmp.inputs[0])
             if sep_b is not None:
@@ -67,8 +62,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             if result is None:
                 result = cmp.outputs[0]
             else:
-                both = nodes.new("ShaderNodeMath")
-                both.operation = "MULTIPLY"
+                both = compat.compositor_math(nodes, "MULTIPLY")
                 both.location = (x + 300, y - 60 * k)
                 links.new(result, both.inputs[0])
                 links.new(cmp.outputs[0], both.inputs[1])
@@ -82,18 +76,16 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         node = nodes.new("CompositorNodeDenoise")
         node.location = (x, y)
         links.new(socket, node.inputs["Image"])
-        mix = nodes.new("ShaderNodeMix")
-        mix.data_type = "RGBA"
-        mix.location = (x + 200, y)
-        links.new(keep_factor, mix.inputs[0])
-        links.new(node.outputs["Image"], mix.inputs[6])
-        links.new(socket, mix.inputs[7])
-        return mix.outputs[2]
+        mix = compat.compositor_mix(nodes)
+        mix.node.location = (x + 200, y)
+        links.new(keep_factor, mix.factor)
+        links.new(node.outputs["Image"], mix.a)
+        links.new(socket, mix.b)
+        return mix.result
 
     cg_image = cg.outputs["Image"]
     if denoise_shadows:
-        alpha_zero = nodes.new("ShaderNodeMath")
-        alpha_zero.operation = "COMPARE"
+        alpha_zero = compat.compositor_math(nodes, "COMPARE")
         alpha_zero.location = (-450, 150)
         links.new(cg.outputs["Alpha"], alpha_zero.inputs[0])
         alpha_zero.inputs[1].default_value = 0.0
@@ -119,17 +111,16 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             local = {k: denoised_unless(v, same, (-300, -300 if k == "With" else -600)) for k, v in local.items()}
         for socket, value in local.items():
             links.new(value, diff.inputs[socket])
-    out = nodes.new("NodeGroupOutput")
-    out.location = (400, 0)
-    links.new(diff.outputs["Image"], out.inputs["Image"])
-    scene.compositing_node_group = tree
+    out = compat.composite_output(tree)
+    out.node.location = (400, 0)
+    links.new(diff.outputs["Image"], out)
     scene.render.use_compositing = True
     wire_grain(scene, tree)      # grain matched earlier (platelight.match_grain) stays wired
     return tree
 
 
 def differential_node(scene):
-    tree = scene.compositing_node_group
+    tree = compat.compositor_tree(scene)
     if tree is None:
         return None
     node = tree.nodes.get(names.DIFFERENTIAL_GROUP)
@@ -143,7 +134,7 @@ def wire_grain(scene, tree=None):
     (the scene's compositor tree) with its stored settings. Returns the image node or None."""
     image = bpy.data.images.get(names.GRAIN_IMAGE)
     settings = image.get(names.GRAIN_SETTINGS_KEY) if image is not None else None
-    tree = tree or scene.compositing_node_group
+    tree = tree or compat.compositor_tree(scene)
     diff = tree.nodes.get(names.DIFFERENTIAL_GROUP) if tree is not None else None
     if settings is None or diff is None:
         return None
@@ -168,22 +159,24 @@ def wire_grain(scene, tree=None):
 
 def add_pass_outputs(scene, directory):
     """Also write the group's CG and Shadows outputs and the plate as float EXRs into ``directory``
-    (one file per pass and frame: <pass><frame>.exr); used by the demo and the tests."""
-    tree = scene.compositing_node_group
+    (one file per pass; pass_output_path says which); used by the demo and the tests."""
+    tree = compat.compositor_tree(scene)
     diff = tree.nodes[names.DIFFERENTIAL_GROUP]
     node = tree.nodes.get(names.PASSES_NODE) or tree.nodes.new("CompositorNodeOutputFile")
     node.name = node.label = names.PASSES_NODE
     node.location = (400, -300)
-    node.directory = directory
-    node.file_name = ""
-    node.format.media_type = "IMAGE"
+    compat.set_still_image(node.format)
     node.format.file_format = "OPEN_EXR"
     node.format.color_depth = "32"
     node.format.color_mode = "RGBA"
-    node.file_output_items.clear()
-    for name in ("CG", "Shadows", "Plate"):
-        node.file_output_items.new("RGBA", name)
+    compat.set_file_output(node, directory, ("CG", "Shadows", "Plate"))
     tree.links.new(diff.outputs["CG"], node.inputs["CG"])
     tree.links.new(diff.outputs["Shadows"], node.inputs["Shadows"])
     tree.links.new(tree.nodes["Plate"].outputs["Image"], node.inputs["Plate"])
     return node
+
+
+def pass_output_path(scene, directory, name):
+    """The file add_pass_outputs' pass ``name`` ("CG", "Shadows", "Plate") is written to when the
+    scene's current frame is rendered."""
+    return compat.file_output_path(directory, name, scene.frame_current)

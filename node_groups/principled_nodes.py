@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from .. import compat
 from ..addon.material.principled import PrincipledValues
 
 # PrincipledValues field -> Principled BSDF input socket (Blender 4.x / 5.0 names).
@@ -42,7 +43,7 @@ def read_principled(material) -> PrincipledValues | None:
 def build_principled_material(name: str, values: PrincipledValues):
     import bpy
 
-    material = bpy.data.materials.new(name)
+    material = compat.new_material(name)
     node = principled_node(material)
     for field, value in dataclasses.asdict(values).items():
         socket = SOCKETS[field]

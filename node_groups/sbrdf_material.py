@@ -10,6 +10,7 @@ import os
 
 import bpy
 
+from .. import compat
 from ..addon import names
 from ..addon.bake.layout import DEFAULT_MAPS_DIR, WORLD_FOLDER, object_maps_dir
 from ..addon.errors import PlateLightError
@@ -82,7 +83,7 @@ def resolve_probe_dir(obj, scene) -> tuple[str, str]:
 
 def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | None = None):
     """A new material shading with the SBRDF bound to the maps in ``probe_dir``."""
-    material = bpy.data.materials.new(name)
+    material = compat.new_material(name)
     tree = material.node_tree
     tree.nodes.clear()
     group = tree.nodes.new("ShaderNodeGroup")

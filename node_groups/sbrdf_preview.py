@@ -10,6 +10,7 @@ import tempfile
 
 import bpy
 
+from .. import compat
 from ..addon import names
 from ..addon.exr_io import read_exr
 from ..addon.ibl.maps import compute_maps, write_maps
@@ -33,7 +34,7 @@ def render_preset_row(out_png: str, hdri: str | None = None, presets=None,
     write_maps(maps_dir, compute_maps(read_exr(hdri)).maps)
 
     scene = bpy.data.scenes.new(names.PRESETS_SCENE)
-    world = bpy.data.worlds.new(names.PRESETS_SCENE)
+    world = compat.new_world(names.PRESETS_SCENE)
     scene.world = world
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdri, check_existing=True)

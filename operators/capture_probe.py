@@ -5,7 +5,9 @@ import os
 import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProperty
 
+from .. import compat
 from ..addon import names
+from ..addon.wording import worded
 from .common import NeedsScene, report_error
 
 
@@ -23,11 +25,24 @@ def _numbers(text: str, what: str, count=None):
     return values
 
 
+def _ball(text: str):
+    """The Ball Circle field: CX,CY,R or, for an elliptical outline, CX,CY,RX,RY."""
+    from ..addon.capture.mirror_ball import Ball
+    from ..addon.errors import PlateLightError
+
+    values = _numbers(text, "ball circle")
+    if len(values) not in (3, 4):
+        raise PlateLightError(f"The ball circle needs 3 comma-separated numbers (CX,CY,R) or 4 "
+                              f"(CX,CY,RX,RY), not '{text}'.")
+    return Ball(*values)
+
+
 # How this operator's fields answer what a probe error asks for (PlateLightError.worded).
 PROBE_FIELDS = {
     "ball": "the Ball Circle field (CX,CY,R in pixels)",
     "exposures": "the Exposure Times field (seconds, one per bracket)",
     "focal": "focal length (the Photo Lens field)",
+    "grey_card": "the Grey Card field",
 }
 
 
@@ -43,7 +58,8 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
     exposures: StringProperty(name="Exposure Times",
                               description="Seconds per bracket in file-name order, e.g. 1/500,1/125,1/30 "
                                           "(empty: read from EXIF)", default="")
-    ball: StringProperty(name="Ball Circle", description="CX,CY,R in pixels (empty: found automatically)",
+    ball: StringProperty(name="Ball Circle", description="CX,CY,R in pixels, or CX,CY,RX,RY for an elliptical "
+                         "outline (empty: found automatically)",
                          default="")
     height: IntProperty(name="Probe Height", default=256, min=8, soft_max=2048)
     reflectance: FloatProperty(name="Ball Reflectance", default=1.0, min=0.01, max=1.0)
@@ -69,7 +85,6 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
     def execute(self, context):
         import math
 
-        from ..addon.capture.mirror_ball import Ball
         from ..addon.capture.probe import make_probe
         from ..addon.errors import PlateLightError
         from ..addon.exr_io import write_exr
@@ -77,14 +92,14 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
         folder = bpy.path.abspath(self.directory)
         paths = [os.path.join(folder, f.name) for f in self.files if f.name]
         if not paths:
-            self.report({"ERROR"}, "Select the exposure brackets of the chrome ball.")
+            self.report({"ERROR"}, "Select a photo of the chrome ball, or its exposure brackets.")
             return {"CANCELLED"}
         out = bpy.path.abspath(self.output) if self.output else os.path.join(folder, "probe.exr")
         wm = context.window_manager
         wm.progress_begin(0, 3)
         try:
             exposures = _numbers(self.exposures, "exposure times") if self.exposures.strip() else None
-            ball = Ball(*_numbers(self.ball, "ball circle", 3)) if self.ball.strip() else None
+            ball = _ball(self.ball) if self.ball.strip() else None
             card = _numbers(self.grey_card, "grey card box", 4) if self.grey_card.strip() else None
             align, intrinsics = None, None
             if self.align_marker_size > 0:
@@ -110,9 +125,9 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             wm.progress_end()
         self._set_world(context, out)
         for warning in result.warnings:
-            self.report({"WARNING"}, warning)
+            self.report({"WARNING"}, worded(warning, PROBE_FIELDS))
         b = result.ball
-        self.report({"INFO"}, f"Probe from {len(paths)} brackets (ball at {b.cx:.0f}, {b.cy:.0f}, "
+        self.report({"INFO"}, f"Probe from {len(paths)} photo(s) (ball at {b.cx:.0f}, {b.cy:.0f}, "
                               f"r {b.radius:.0f} px) -> {out}")
         return {"FINISHED"}
 
@@ -120,9 +135,9 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
         scene = context.scene
         world = scene.world
         if world is None:
-            world = bpy.data.worlds.new(names.WORLD)
+            world = compat.new_world(names.WORLD)
             scene.world = world
-        nt = world.node_tree
+        nt = compat.node_tree(world)      # a 4.5 world made without nodes gets them
         background = next((n for n in nt.nodes if n.type == "BACKGROUND"), None) or nt.nodes.new("ShaderNodeBackground")
         output = next((n for n in nt.nodes if n.type == "OUTPUT_WORLD"), None) or nt.nodes.new("ShaderNodeOutputWorld")
         if not background.outputs["Background"].links:

@@ -1,5 +1,6 @@
-"""Small helpers shared by PlateLight's operators (bpy): the plate and its colour management, the
-world's environment image, the add-on preferences, object kinds, the NeedsScene poll."""
+"""Small helpers shared by PlateLight's operators (bpy): the plate and its colour management,
+object kinds, where data for the scene goes, the add-on preferences, error reports in Blender's
+words, the NeedsScene poll. (What the world shows: world_environment.py.)"""
 import os
 
 import bpy
@@ -33,45 +34,6 @@ def set_plate_colour_management(scene):
     view.use_curve_mapping = False
     scene.render.dither_intensity = 0.0  # dither noise would change 8-bit plates
     scene.sequencer_colorspace_settings.name = "Linear Rec.709"
-
-
-def world_background(world):
-    """(Background node, Environment Texture node or None) that the world's active output shows
-    (the texture only when it feeds the Background's colour directly); None without that chain."""
-    tree = world.node_tree if world is not None else None
-    if tree is None:
-        return None
-    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output]
-    if len(outputs) != 1 or not outputs[0].inputs["Surface"].is_linked:
-        return None
-    background = outputs[0].inputs["Surface"].links[0].from_node
-    if background.bl_idname != "ShaderNodeBackground":
-        return None
-    color = background.inputs["Color"]
-    source = color.links[0].from_node if color.is_linked else None
-    return background, (source if source is not None and source.bl_idname == "ShaderNodeTexEnvironment"
-                        else None)
-
-
-def world_environment_node(world):
-    """The world's Environment Texture: the one its Background shows, else the first one."""
-    chain = world_background(world)
-    if chain is not None and chain[1] is not None:
-        return chain[1]
-    if world is None or world.node_tree is None:
-        return None
-    return next((n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment"), None)
-
-
-def world_probe_path(scene):
-    """The probe file: scene.platelight.world_probe, else the world's Environment Texture image
-    (absolute; "" when there is neither)."""
-    if scene.platelight.world_probe:
-        return bpy.path.abspath(scene.platelight.world_probe)
-    node = world_environment_node(scene.world)
-    if node is None or node.image is None:
-        return ""
-    return bpy.path.abspath(node.image.filepath, library=node.image.library)
 
 
 def data_folder(scene, name):

@@ -10,6 +10,7 @@ user placed by hand elsewhere are left alone and keep working (the paper's manua
 With ``replace_world_lighting`` the world stops lighting diffuse surfaces (the lights carry its
 energy instead, no double counting) but is still seen in reflections.
 """
+import dataclasses
 import os
 
 import bpy
@@ -18,7 +19,8 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty
 from mathutils import Vector
 
 from ..addon import names
-from .common import data_folder, report_error, world_environment_node, world_probe_path
+from .common import data_folder, report_error
+from .world_environment import SUNLESS_OF_KEY, probe_image, world_image
 
 
 def create_sun_lights(scene, lights, name_prefix=names.LIGHT_PREFIX):
@@ -80,27 +82,27 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if context.scene is None or not world_probe_path(context.scene):
-            cls.poll_message_set("Needs a world probe: set Scene > PlateLight > World Probe or an "
-                                 "Environment Texture in the world")
+        if context.scene is None or probe_image(context.scene) is None:
+            cls.poll_message_set("Needs a world probe: set Scene > PlateLight > World Probe, or make the "
+                                 "world an EXR Environment Texture (a Mapping node may turn it)")
             return False
         return True
 
     def execute(self, context):
         from ..addon.errors import PlateLightError
-        from ..addon.exr_io import read_exr
+        from ..addon.hdr_io import read_probe
         from ..addon.ibl.lights import probe_lights
 
         scene = context.scene
-        path = world_probe_path(scene)
-        if not path or not os.path.isfile(path):
-            self.report({"ERROR"}, f"World probe not found: {path or '(none set)'}.")
+        image = probe_image(scene)
+        if image is None or not os.path.isfile(image.path):
+            self.report({"ERROR"}, f"World probe not found: {image.path if image else '(none set)'}.")
             return {"CANCELLED"}
         try:
-            env = read_exr(path)
+            env = read_probe(image.path)
             if self.mode == "SUN_SKY":
-                return self._sun_and_sky(scene, path, env)
-            lights = probe_lights(env, self.count, self.detect_sun)
+                return self._sun_and_sky(scene, image, env)
+            lights = [_in_world(image, light) for light in probe_lights(env, self.count, self.detect_sun)]
         except PlateLightError as err:
             report_error(self, err)
             return {"CANCELLED"}
@@ -117,31 +119,35 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
         sun = next((light for light in lights if light.is_sun), None)
         extra = (f"; sun at elevation {np.degrees(np.arcsin(sun.direction[2])):.1f}°" if sun
                  else "; no sun found")
-        self.report({"INFO"}, f"{len(made)} light(s) from {os.path.basename(path)}{extra}.")
+        self.report({"INFO"}, f"{len(made)} light(s) from {os.path.basename(image.path)}{extra}.")
         return {"FINISHED"}
 
-
-    def _sun_and_sky(self, scene, path, env):
+    def _sun_and_sky(self, scene, probe, env):
         from ..addon.exr_io import write_exr
         from ..addon.ibl.lights import split_sun
 
-        node = world_environment_node(scene.world)
-        if node is None:
-            self.report({"ERROR"}, "Sun Lamp + Sky needs the probe in an Environment Texture of the "
-                        "world; use Lamps Only instead.")
+        shown = world_image(scene.world)
+        if shown is None:
+            self.report({"ERROR"}, "Sun Lamp + Sky needs the world to show an EXR Environment Texture "
+                        "(a Mapping node may turn it); use Lamps Only instead.")
             return {"CANCELLED"}
+        # The sun-less probe goes into the world's Environment Texture: its strength and
+        # rotation apply to the probe, so the sun lamp gets them too.
+        probe = dataclasses.replace(shown, path=probe.path)
         sun, sky = split_sun(env)
         if sun is None:
-            self.report({"WARNING"}, f"No sun found in {os.path.basename(path)}; nothing changed.")
+            self.report({"WARNING"}, f"No sun found in {os.path.basename(probe.path)}; nothing changed.")
             return {"CANCELLED"}
-        sky_path = _sunless_probe_path(scene, path)
+        sun = _in_world(probe, sun)
+        sky_path = _sunless_probe_path(scene, probe.path)
         write_exr(sky_path, sky.astype(np.float32))
         image = bpy.data.images.load(sky_path, check_existing=True)
         image.reload()
         image.colorspace_settings.name = "Linear Rec.709"
-        node.image = image
+        image[SUNLESS_OF_KEY] = probe.path
+        shown.node.image = image
         if not scene.platelight.world_probe:
-            scene.platelight.world_probe = path  # re-runs start from the probe with its sun
+            scene.platelight.world_probe = probe.path  # re-runs start from the probe with its sun
         create_sun_lights(scene, [sun])
         scene.world.cycles_visibility.diffuse = True
         scene.world.cycles_visibility.scatter = True
@@ -149,6 +155,12 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
                     f"{np.degrees(np.arcsin(sun.direction[2])):.1f}°, {np.degrees(sun.angle):.2f}° wide); "
                     f"the world now shows {os.path.basename(sky_path)}.")
         return {"FINISHED"}
+
+
+def _in_world(image, light):
+    """A light found in ``image`` as the world shows it: turned by its Mapping, times its strength."""
+    return dataclasses.replace(light, direction=image.to_world(light.direction),
+                               rgb=light.rgb * image.strength)
 
 
 classes = (PLATELIGHT_OT_lights_from_probe,)

@@ -27,10 +27,10 @@ def _plate_path(context) -> str:
 def _clear_transform_keys(obj):
     """Remove an earlier track's location/rotation keys (Blender 5 layered actions), keeping
     any other animation of the camera (focus, lens...)."""
-    from bpy_extras.anim_utils import animdata_get_channelbag_for_assigned_slot
+    from bpy_extras.anim_utils import action_get_channelbag_for_slot   # 4.4 and later
 
     anim = obj.animation_data
-    bag = animdata_get_channelbag_for_assigned_slot(anim) if anim and anim.action else None
+    bag = action_get_channelbag_for_slot(anim.action, anim.action_slot) if anim and anim.action else None
     if bag is None:
         return
     for fc in [fc for fc in bag.fcurves if fc.data_path in ("location", "rotation_quaternion",

@@ -8,6 +8,7 @@ import sys
 import numpy as np
 
 from support import EXT_MODULE
+from support import compat
 
 
 def bake_module(part="job"):
@@ -25,7 +26,7 @@ def new_scene(bpy, tmp_path, *, world_color=(1.0, 1.0, 1.0), env_exr=None, save=
               height=32, samples=8):
     """Empty scene with a camera looking at the origin and a world (uniform colour or an EXR)."""
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("World")
+    world = compat().new_world("World")
     scene.world = world
     tree = world.node_tree
     background = tree.nodes["Background"]
@@ -69,7 +70,7 @@ def add_plane(bpy, name, location, size=6.0, color=None, phantom=False):
 
 
 def material(bpy, name, color, emission=None):
-    mat = bpy.data.materials.new(name)
+    mat = compat().new_material(name)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*color, 1.0)
     bsdf.inputs["Roughness"].default_value = 1.0

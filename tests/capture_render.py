@@ -13,6 +13,7 @@ import os
 import pathlib
 
 import numpy as np
+from support import compat
 
 PX_PER_M = 5000.0           # texture resolution: 0.04 m squares = 200 px, 0.12 m marker = 600 px
 MARGIN_M = 0.01
@@ -51,6 +52,20 @@ def camera_path(n: int, distance: float, seed: int = 7) -> list[np.ndarray]:
     return out
 
 
+def calibration_path(n: int = 12, distance: float = 0.45, tilt_deg: float = 45.0, seed: int = 3) -> list[np.ndarray]:
+    """The views a calibration needs (calibration.ADVICE): the board tilted ``tilt_deg`` towards
+    ``n`` directions in turn, rolled, and seen off-centre in different parts of the frame."""
+    rng = np.random.default_rng(seed)
+    out = []
+    tilt = math.radians(tilt_deg)
+    for i in range(n):
+        az = 2 * math.pi * i / n
+        pos = distance * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
+        aim = np.array([0.05 * math.cos(3 * az + 1), 0.05 * math.sin(2 * az + 0.5), 0.0])
+        out.append(look_at(pos, aim, roll_deg=float(rng.uniform(-15, 15))))
+    return out
+
+
 def _cycles(scene, width, height, samples):
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
@@ -76,7 +91,7 @@ def render_target_frames(bpy, texture_png: str, extent_m, poses, out_dir, width=
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     scene = bpy.context.scene
     _cycles(scene, width, height, samples)
-    world = bpy.data.worlds.new("black")
+    world = compat().new_world("black")
     world.color = (0, 0, 0)
     scene.world = world
     half_w = extent_m[0] / 2 + MARGIN_M
@@ -89,7 +104,7 @@ def render_target_frames(bpy, texture_png: str, extent_m, poses, out_dir, width=
         loop.uv = co
     board = bpy.data.objects.new("board", mesh)
     scene.collection.objects.link(board)
-    mat = bpy.data.materials.new("board")
+    mat = compat().new_material("board")
     nt = mat.node_tree
     nt.nodes.clear()
     tex = nt.nodes.new("ShaderNodeTexImage")
@@ -136,7 +151,7 @@ def render_mirror_ball(bpy, hdri_path: str, out_exr: str, size=256, samples=16,
     scene = bpy.context.scene
     _cycles(scene, size, size, samples)
     scene.cycles.max_bounces = 2
-    world = bpy.data.worlds.new("probe")
+    world = compat().new_world("probe")
     scene.world = world
     nt = world.node_tree
     env = nt.nodes.new("ShaderNodeTexEnvironment")
@@ -149,7 +164,7 @@ def render_mirror_ball(bpy, hdri_path: str, out_exr: str, size=256, samples=16,
     bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
     ball = bpy.context.active_object
     bpy.ops.object.shade_smooth()
-    mat = bpy.data.materials.new("chrome")
+    mat = compat().new_material("chrome")
     mnt = mat.node_tree
     mnt.nodes.clear()
     glossy = mnt.nodes.new("ShaderNodeBsdfGlossy")

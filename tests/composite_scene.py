@@ -7,6 +7,7 @@ import numpy as np
 
 import support
 from platelight.addon.exr_io import read_exr, write_exr
+from support import compat
 
 W, H = 96, 54
 SUN_DIR = np.array([0.45, -0.35, 0.82])
@@ -74,7 +75,7 @@ def add_sun(bpy, scene, direction=SUN_DIR, strength=4.0):
 
 
 def grey_world(bpy, scene, value=0.15):
-    world = bpy.data.worlds.new("World")
+    world = compat().new_world("World")
     world.node_tree.nodes["Background"].inputs[0].default_value = (value, value, value, 1.0)
     scene.world = world
 
@@ -88,10 +89,11 @@ def render(bpy, scene, path):
 
 
 def render_with_passes(bpy, scene, folder):
-    importlib.import_module(f"{support.EXT_MODULE}.node_groups.compositor_tree").add_pass_outputs(
-        scene, str(folder) + "/")
+    compositor_tree = importlib.import_module(f"{support.EXT_MODULE}.node_groups.compositor_tree")
+    compositor_tree.add_pass_outputs(scene, str(folder) + "/")
     out = render(bpy, scene, folder / "composite.exr")
-    return out, {n: read_exr(folder / f"{n}.exr", "RGBA") for n in ("CG", "Shadows")}
+    return out, {n: read_exr(compositor_tree.pass_output_path(scene, str(folder), n), "RGBA")
+                 for n in ("CG", "Shadows")}
 
 
 def ground_points(bpy, scene):

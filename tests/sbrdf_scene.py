@@ -8,6 +8,7 @@ import pathlib
 import numpy as np
 
 from platelight.addon.exr_io import read_exr, write_exr
+from support import compat
 
 MAP_HEIGHTS = {"diffuse": 16, "glossy1": 32, "glossy2": 64, "specular": 128}
 VIEW = np.array([0.0, -1.0, 0.0])     # surface -> viewer for a camera looking along +Y
@@ -103,7 +104,7 @@ def render(bpy, path: pathlib.Path) -> np.ndarray:
 
 def position_material(bpy):
     """Emission showing object coordinates as 0.25 * P + 0.5 (to read P back per pixel)."""
-    mat = bpy.data.materials.new("PositionPass")
+    mat = compat().new_material("PositionPass")
     nt = mat.node_tree
     nt.nodes.clear()
     tc = nt.nodes.new("ShaderNodeTexCoord")

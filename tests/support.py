@@ -14,9 +14,10 @@ import sys
 import tempfile
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-# the shared contracts and data: beside the checkout (/work/main) or above a worktree (/work/wt/NAME)
-SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "design.md").is_file()),
-              REPO.parent / "shared")
+# the shared data sit beside the main checkout (/work/shared next to /work/main); a worktree
+# (/work/wt/NAME) finds them one level further up
+SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "data").is_dir()), REPO.parent / "shared")
+REAL = SHARED / "data" / "real"
 GRACE = SHARED / "data" / "probes" / "grace_latlong.exr"
 
 # This process's own folder holding a `platelight` link to the checkout, removed at exit.
@@ -43,3 +44,11 @@ def run_cli(*args, cwd=None, timeout=600) -> subprocess.CompletedProcess:
     """Run ``python -m platelight ARGS`` on this checkout; returns the completed process."""
     return subprocess.run([sys.executable, "-m", "platelight", *map(str, args)], cwd=cwd,
                           env=cli_env(), capture_output=True, text=True, timeout=timeout)
+
+
+def compat():
+    """The checkout's compat.py (the Blender-version glue; it imports bpy, so call it from
+    Blender tests only)."""
+    import importlib
+
+    return importlib.import_module("platelight.compat")

@@ -65,6 +65,12 @@ def forward_ball(env, size, radius, camera_rotation, background=0.2, reflectance
 def _exif_jpeg(path, exposure, endian="<"):
     """A JPEG with an Exif block: IFD0 -> Exif IFD -> ExposureTime (RATIONAL)."""
     ok, jpg = cv2.imencode(".jpg", np.full((8, 8, 3), 128, np.uint8))
+    path.write_bytes(jpg.tobytes())
+    _add_exif(path, exposure, endian)
+
+
+def _add_exif(path, exposure, endian="<"):
+    """Insert an Exif block with ExposureTime into the JPEG at ``path``."""
     num, den = exposure
     head = (b"II*\x00" if endian == "<" else b"MM\x00*") + struct.pack(endian + "I", 8)
     ifd0 = struct.pack(endian + "H", 1) + struct.pack(endian + "HHII", 0x8769, 4, 1, 26) + struct.pack(endian + "I", 0)
@@ -72,7 +78,7 @@ def _exif_jpeg(path, exposure, endian="<"):
                 + struct.pack(endian + "I", 0) + struct.pack(endian + "II", num, den))
     tiff = head + ifd0 + exif_ifd
     app1 = b"Exif\x00\x00" + tiff
-    data = jpg.tobytes()
+    data = path.read_bytes()
     path.write_bytes(data[:2] + b"\xff\xe1" + struct.pack(">H", len(app1) + 2) + app1 + data[2:])
 
 
@@ -234,8 +240,18 @@ def test_probe_bad_inputs(ball_files, tmp_path):
     folder, paths, _ = ball_files
     out = tmp_path / "p.exr"
     times = "1/500,1/125,1/30,1/8"
-    assert "at least two differently exposed brackets; got one image" in _cli_error(paths[0], "--out", out)
     assert "No EXIF exposure time in b0.png, b1.png" in _cli_error(*paths, "--out", out)
+    # EXIF missing from one bracket only: that one is named
+    exif = []
+    for i, den in enumerate((500, 125, 30)):
+        img = cv2.imread(str(paths[i]))
+        ok, jpg = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        exif.append(tmp_path / f"e{i}.jpg")
+        exif[-1].write_bytes(jpg.tobytes())
+        if i != 1:
+            _add_exif(exif[-1], (1, den))
+    assert "No EXIF exposure time in e1.jpg; give them with --exposures" in _cli_error(*exif, "--out", out)
+    assert "2 exposure times were given for 1 photo" in _cli_error(paths[0], "--exposures", "1,2", "--out", out)
     big = tmp_path / "big.png"
     cv2.imwrite(str(big), np.zeros((10, 12, 3), np.uint8))
     assert "different sizes" in _cli_error(paths[0], big, "--exposures", "1/500,1/125", "--out", out)
@@ -250,7 +266,7 @@ def test_probe_bad_inputs(ball_files, tmp_path):
         flat.append(tmp_path / f"flat{i}.png")
         cv2.imwrite(str(flat[-1]), np.full((100, 100, 3), 60 + 40 * i, np.uint8))
     assert "No mirror ball was found" in _cli_error(*flat, "--exposures", "1/100,1/50,1/25", "--out", out)
-    assert "reaches outside the image" in _cli_error(*paths, "--exposures", times, "--ball", "150,80,40",
+    assert "The ball is cut by the frame (76 % of its radius" in _cli_error(*paths, "--exposures", times, "--ball", "150,80,40",
                                                      "--out", out)
     assert not out.exists()
 

@@ -10,6 +10,7 @@ import pytest
 import support
 from platelight.addon.capture import mirror_ball
 from platelight.addon.errors import PlateLightError
+from platelight.addon.wording import Sentence, worded
 from platelight.cli import FLAGS
 
 
@@ -22,6 +23,13 @@ def test_inputs_are_worded_per_front_end():
     assert str(plain) == plain.worded(FLAGS) == "File not found: {x}.exr"
 
 
+def test_warnings_are_worded_per_front_end_too():
+    warning = Sentence("shoot brackets (or give {grey_card})", grey_card="a grey card's box")
+    assert warning == "shoot brackets (or give a grey card's box)"
+    assert worded(warning, FLAGS) == "shoot brackets (or give --grey-card)"
+    assert worded("a plain warning", FLAGS) == "a plain warning"
+
+
 def test_an_engine_error_names_no_flag_and_the_cli_names_its_flag():
     flat = np.full((64, 96, 3), 0.5, np.float32)          # no ball anywhere
     with pytest.raises(PlateLightError) as caught:
@@ -31,9 +39,10 @@ def test_an_engine_error_names_no_flag_and_the_cli_names_its_flag():
 
 
 def _sentences(path):
-    """String pieces of every PlateLightError(...) raised in ``path``."""
+    """String pieces of every PlateLightError(...) and warning Sentence(...) in ``path``."""
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
-        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "PlateLightError" and node.args:
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) in ("PlateLightError", "Sentence") \
+                and node.args:
             for piece in ast.walk(node.args[0]):
                 if isinstance(piece, ast.Constant) and isinstance(piece.value, str):
                     yield node.lineno, piece.value

@@ -35,8 +35,9 @@ def test_venv_runs_platelight_from_any_folder(tmp_path):
 
     import pytest
 
-    if pathlib.Path(sys.prefix).resolve() != (support.REPO / ".venv").resolve():
-        pytest.skip("not running inside this checkout's .venv (made by `make test`)")
+    prefix = pathlib.Path(sys.prefix)
+    if prefix.parent != support.REPO or not (prefix.name == ".venv" or prefix.name.startswith(".venv-")):
+        pytest.skip("not running inside this checkout's .venv or .venv-X.Y (made by `make test`)")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     proc = subprocess.run([sys.executable, "-m", "platelight", "--help"], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=60)

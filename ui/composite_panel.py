@@ -2,6 +2,7 @@
 lights from the probe, the composite; and the same tracking in the Movie Clip editor's sidebar."""
 import bpy
 
+from .. import compat
 from ..addon import names
 from .registration import register_classes, unregister_classes
 
@@ -32,12 +33,13 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         row.operator("platelight.lights_from_probe", text="Sun Lamp + Sky").mode = "SUN_SKY"
         row.operator("platelight.lights_from_probe", text="Lamps Only").mode = "LIGHTS"
         col = layout.column(align=True)
-        tree = scene.compositing_node_group
+        tree = compat.compositor_tree(scene)
         col.label(text=f"Composite: {tree.name if tree else 'not set up'}", icon="NODE_COMPOSITING")
         row = col.row(align=True)
         row.operator("platelight.setup_composite", text="Shadow Catcher").method = "CATCHER"
         row.operator("platelight.setup_composite", text="Differential").method = "DIFFERENTIAL"
         col.operator("platelight.match_grain", text="Match Grain", icon="MOD_NOISE")
+        layout.operator("platelight.export_farm_job", icon="NETWORK_DRIVE")
 
 
 class PLATELIGHT_PT_clip_tracking(bpy.types.Panel):

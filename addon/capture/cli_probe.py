@@ -8,6 +8,7 @@ import sys
 import time
 
 from ..errors import PlateLightError
+from ..wording import CLI_FLAGS, worded
 from ..fileio import ensure_writable_folder, write_json_atomic
 
 
@@ -33,15 +34,18 @@ def eval_fraction(text: str) -> float:
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("probe", help="chrome-ball exposure brackets -> lat-long HDR probe EXR",
-                       description="Merge differently exposed photos of a mirror ball and unwrap the ball "
-                                   "into an equirectangular probe (Blender's Environment Texture layout).")
-    p.add_argument("images", nargs="+", metavar="IMAGES", help="the brackets (JPEG/PNG/TIFF, 8 or 16 bit)")
+    p = sub.add_parser("probe", help="chrome-ball photo or exposure brackets -> lat-long probe EXR",
+                       description="Merge differently exposed photos of a mirror ball (or take one photo: an "
+                                   "LDR probe) and unwrap the ball into an equirectangular probe (Blender's "
+                                   "Environment Texture layout).")
+    p.add_argument("images", nargs="+", metavar="IMAGES",
+                   help="one photo or the brackets (JPEG/PNG/TIFF, 8 or 16 bit; one .hdr/.exr is HDR already)")
     p.add_argument("--exposures", type=_floats(None), metavar="T1,T2,...",
                    help="exposure times in seconds (1/250 allowed), in the order of IMAGES; default: EXIF")
     p.add_argument("--out", required=True, metavar="probe.exr", help="output EXR (float32 RGB)")
     p.add_argument("--height", type=int, default=256, help="probe height in pixels (width = 2 x height)")
-    p.add_argument("--ball", type=_floats(3), metavar="CX,CY,R", help="ball circle in pixels (default: found)")
+    p.add_argument("--ball", type=_floats(None), metavar="CX,CY,R",
+                   help="ball circle in pixels (CX,CY,RX,RY for a slightly elliptical outline; default: found)")
     p.add_argument("--reflectance", type=float, default=1.0,
                    help="the ball's reflectance (a chrome ball is about 0.6-0.8; default 1)")
     p.add_argument("--camera-from", metavar="POSES.json",
@@ -88,6 +92,8 @@ def run(args) -> int:
 
     if args.height < 4:
         raise PlateLightError("The probe height must be at least 4 pixels.")
+    if args.ball is not None and len(args.ball) not in (3, 4):
+        raise PlateLightError(f"--ball needs CX,CY,R (or CX,CY,RX,RY), not {len(args.ball)} numbers.")
     ensure_writable_folder(os.path.dirname(os.path.abspath(args.out)))
     camera = camera_from_poses(args.camera_from, args.frame) if args.camera_from else None
     align, intrinsics = None, None
@@ -114,8 +120,11 @@ def run(args) -> int:
     if args.report:
         write_json_atomic(args.report, result.report())
     for w in result.warnings:
-        print(f"platelight probe: warning: {w}", file=sys.stderr)
+        print(f"platelight probe: warning: {worded(w, CLI_FLAGS)}", file=sys.stderr)
     b = result.ball
-    print(f"ball at ({b.cx:.1f}, {b.cy:.1f}) r={b.radius:.1f} px; {len(result.times)} brackets; "
+    shape = f"r={b.radius:.1f}" if b.radius_y is None else f"rx={b.radius:.1f} ry={b.radius_y:.1f}"
+    found = "given" if b.confidence is None else f"found, rim seen on {100 * b.confidence:.0f} % of the outline"
+    photos = "1 photo" if len(result.times) == 1 else f"{len(result.times)} brackets"
+    print(f"ball at ({b.cx:.1f}, {b.cy:.1f}) {shape} px ({found}); {photos}; "
           f"{time.perf_counter() - t0:.2f} s -> {args.out}")
     return 0

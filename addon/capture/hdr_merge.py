@@ -15,6 +15,8 @@ import struct
 import numpy as np
 
 from ..errors import PlateLightError
+from ..imaging import srgb_to_linear
+from ..wording import Sentence
 
 SATURATED = 250      # 8-bit value from which a pixel counts as clipped
 DARK = 5             # and below which as lost in the noise floor
@@ -91,18 +93,13 @@ def read_brackets(paths, exposures=None) -> tuple[list[np.ndarray], np.ndarray]:
         raise PlateLightError("A probe needs at least two differently exposed brackets; got one image.")
     images = []
     for p in paths:
-        if not os.path.isfile(p):
-            raise PlateLightError(f"Bracket not found: {p}")
-        img = cv2.imread(p, cv2.IMREAD_UNCHANGED)
-        if img is None:
-            raise PlateLightError(f"Cannot read the bracket (not an image file, or damaged): {p}")
+        img = read_photo(p)
         if img.dtype == np.uint16:
             img = (img >> 8).astype(np.uint8)
         elif img.dtype != np.uint8:
-            raise PlateLightError(f"Brackets must be 8- or 16-bit images; {p} is {img.dtype}.")
-        if img.ndim == 2:
-            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
-        images.append(np.ascontiguousarray(img[..., :3]))
+            raise PlateLightError(f"Brackets must be 8- or 16-bit images; {p} is {img.dtype} (an HDR "
+                                  f"file is a probe photo on its own: give it alone).")
+        images.append(img)
     sizes = {im.shape[:2] for im in images}
     if len(sizes) != 1:
         desc = ", ".join(f"{im.shape[1]}x{im.shape[0]}" for im in images)
@@ -125,6 +122,70 @@ def read_brackets(paths, exposures=None) -> tuple[list[np.ndarray], np.ndarray]:
         raise PlateLightError("All brackets have the same exposure time; an HDR merge needs different ones.")
     order = np.argsort(times)
     return [images[i] for i in order], times[order]
+
+
+def read_photo(path: str) -> np.ndarray:
+    """A photo as OpenCV reads it (BGR, 8/16-bit, or float32 for .hdr/.exr), 3 channels."""
+    import cv2
+
+    if not os.path.isfile(path):
+        raise PlateLightError(f"Bracket not found: {path}")
+    if path.lower().endswith((".hdr", ".pic", ".rgbe", ".exr")):
+        from ..hdr_io import read_probe
+
+        return np.ascontiguousarray(read_probe(path)[..., ::-1])
+    img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise PlateLightError(f"Cannot read the bracket (not an image file, or damaged): {path}")
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    elif img.shape[2] == 4:
+        img = img[..., :3]
+    return np.ascontiguousarray(img)
+
+
+def srgb_response() -> np.ndarray:
+    """The sRGB decoding curve as an inverse response (256, 3), value 128 -> 1 like Debevec's."""
+    lin = srgb_to_linear(np.arange(256) / 255.0)
+    return np.repeat((lin / lin[128])[:, None], 3, axis=1)
+
+
+def single_photo(path: str, exposure: float | None = None) -> tuple[np.ndarray, "MergeResult", float | None]:
+    """One photo -> (the photo as read, linear radiance, exposure time). An 8/16-bit photo is
+    decoded with the sRGB curve (value 128 -> 1, like a merge, then / exposure time when known):
+    an LDR probe whose highlights are clipped at the photo's white. A float photo (.hdr/.exr) is
+    already radiance."""
+    import cv2
+
+    img = read_photo(path)
+    t = float(exposure) if exposure is not None else exif_exposure_time(path)
+    if t is not None and not (np.isfinite(t) and t > 0):
+        raise PlateLightError("Exposure times must be positive numbers of seconds.")
+    resp = srgb_response()
+    if np.issubdtype(img.dtype, np.floating):
+        rad = np.nan_to_num(np.maximum(img[..., ::-1], 0), nan=0.0, posinf=0.0).astype(np.float32)
+        return img, MergeResult(rad, np.zeros(rad.shape[:2], bool), resp, []), t
+    if img.dtype == np.uint16:
+        lin = srgb_to_linear(img / np.float32(65535.0)).astype(np.float32)
+        rad = lin / np.float32(srgb_to_linear(128 / 255.0))
+        clipped_ch = img >= int(SATURATED / 255.0 * 65535)
+    elif img.dtype == np.uint8:
+        rad = cv2.LUT(img, np.ascontiguousarray(resp[None, :, :].astype(np.float32)))
+        clipped_ch = img >= SATURATED
+    else:
+        raise PlateLightError(f"Photos must be 8- or 16-bit images or HDR files; {path} is {img.dtype}.")
+    rad = rad[..., ::-1] / np.float32(t if t else 1.0)
+    clipped = np.any(clipped_ch, axis=-1)
+    if np.all(clipped) or np.all(img <= (DARK if img.dtype == np.uint8 else DARK * 257)):
+        raise PlateLightError("The photo is all white or all black; its exposure does not fit the scene.")
+    n = int(clipped.sum())
+    warnings = [Sentence(f"one photo gives a low-dynamic-range probe: {100.0 * n / clipped.size:.2f} % of its "
+                         f"pixels are clipped at the photo's white, so the light of the sun and of lamps is only a "
+                         f"lower bound; shoot exposure brackets (or give {{grey_card}}) for their true energy",
+                         grey_card="a grey card's box")]
+    if t is None:
+        warnings.append("no exposure time in the photo's EXIF: the probe's brightness is relative (value 128 -> 1)")
+    return img, MergeResult(np.ascontiguousarray(rad, dtype=np.float32), clipped, resp, warnings), t
 
 
 def recover_response(images, times, samples: int = 200, smoothness: float = 10.0,

@@ -75,19 +75,10 @@ def load_calibration(path: str | os.PathLike) -> Intrinsics:
 
 
 def calibrate_from_detections(detections: list, size: tuple[int, int]):
-    """Intrinsics (k1, k2 distortion) from ChArUco detections (detection.Detection); (Intrinsics,
-    rms px)."""
-    import cv2
+    """Intrinsics with OpenCV's five distortion coefficients from ChArUco detections
+    (detection.Detection): (Intrinsics, calibration.Calibration)."""
+    from .calibration import calibrate
 
     usable = [d for d in detections if d.kind == "charuco" and len(d.object_points) >= 6]
-    if len(usable) < 3:
-        raise PlateLightError(
-            f"Calibration needs the board in at least 3 frames with 6 corners each; found {len(usable)}.")
-    obj = [d.object_points.astype(np.float32) for d in usable]
-    img = [d.image_points.astype(np.float32).reshape(-1, 1, 2) for d in usable]
-    # k3 and tangential terms overfit a handful of frames (6 Cycles frames: k3 = -11.9, cx off
-    # by 4.5 px); k1, k2 are enough for all but wide lenses.
-    flags = cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
-    rms, k, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None, flags=flags)
-    return Intrinsics(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]),
-                      tuple(float(v) for v in dist.reshape(-1))), float(rms)
+    cal = calibrate([d.object_points for d in usable], [d.image_points for d in usable], size)
+    return Intrinsics(cal.fx, cal.fy, cal.cx, cal.cy, cal.dist), cal

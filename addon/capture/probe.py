@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 
@@ -22,7 +23,7 @@ class ProbeResult:
 
     def report(self) -> dict:
         return {
-            "ball": dataclasses.asdict(self.ball),
+            "ball": self.ball.to_json(),
             "exposure_times": [float(t) for t in self.times],
             "clipped": self.clipped,
             "repair_scale": self.repair_scale,
@@ -43,10 +44,21 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     in the photos, used to repair light clipped in every bracket (hdr_merge.repair_clipped)."""
     if not (np.isfinite(reflectance) and 0 < reflectance <= 1):
         raise PlateLightError("The ball's reflectance must be in (0, 1].")
-    images, times = hdr_merge.read_brackets(paths, exposures)
-    merged = hdr_merge.merge(images, times, shared_response=shared_response)
-    if ball is None:
-        ball = mirror_ball.find_ball(merged.radiance)
+    paths = [os.fspath(p) for p in paths]
+    if len(paths) == 1:                           # one phone photo: an LDR probe, with a warning
+        if exposures is not None and len(exposures) != 1:
+            raise PlateLightError(f"{len(exposures)} exposure times were given for 1 photo.")
+        photo, merged, t = hdr_merge.single_photo(paths[0], exposures[0] if exposures else None)
+        images, times = [photo], np.array([t if t else 1.0])
+        if ball is None:
+            ball = mirror_ball.find_ball(photo)
+    else:
+        images, times = hdr_merge.read_brackets(paths, exposures)
+        merged = hdr_merge.merge(images, times, shared_response=shared_response)
+        if ball is None:
+            ball = mirror_ball.find_ball(merged.radiance)
+    h, w = merged.radiance.shape[:2]
+    mirror_ball.check_ball(ball, w, h)
     if align_target is not None:
         camera_to_world = camera_from_target(images, align_target, align_intrinsics)
     rot = mirror_ball.default_camera_rotation() if camera_to_world is None else \
@@ -56,14 +68,13 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     clip_map, _ = mirror_ball.unwrap(merged.clipped.astype(np.float32)[..., None], ball, height, rot)
     clipped = clip_map[..., 0] > 0.5
     summary = hdr_merge.clipped_region_summary(clipped)
-    warnings = list(merged.warnings)
+    warnings = list(merged.warnings) + mirror_ball.ball_warnings(ball, w, h)
     scale = None
     if card_box is not None:
         if not clipped.any():
             warnings.append("a grey card was given but nothing is clipped in every bracket; no repair needed")
         else:
             x0, y0, x1, y1 = (int(round(v)) for v in card_box)
-            h, w = merged.radiance.shape[:2]
             if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
                 raise PlateLightError(f"The grey card box {tuple(card_box)} is not inside the {w}x{h} photos.")
             card = merged.radiance[y0:y1, x0:x1].reshape(-1, 3).mean(0)

@@ -23,6 +23,7 @@ class TrackResult:
     frames: list[dict]
     target_extent: tuple[float, float]
     warnings: list[str] = dataclasses.field(default_factory=list)
+    calibration: dict | None = None           # calibration.Calibration.to_json() when calibrated
 
     @property
     def tracked_count(self) -> int:
@@ -35,6 +36,7 @@ class TrackResult:
             "target_size": list(self.target_extent),
             "frames": self.frames,
             "warnings": self.warnings,
+            **({"calibration": self.calibration} if self.calibration else {}),
         }
 
 
@@ -106,9 +108,14 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
         raise PlateLightError(f"No {target.dictionary} marker was found in any of the {len(detections)} frames.")
 
     warnings = []
+    cal = None
     if calibrate:
-        intrinsics, rms = calibrate_from_detections([d for _, d in found], size)
-        warnings.append(f"calibrated from {len(found)} frames, RMS reprojection {rms:.3f} px")
+        intrinsics, cal = calibrate_from_detections([d for _, d in found], size)
+        warnings.append(f"calibrated from {cal.views} frames, RMS reprojection {cal.rms_px:.3f} px, "
+                        f"fx {intrinsics.fx:.1f} +- {cal.std['fx']:.1f}, fy {intrinsics.fy:.1f} +- "
+                        f"{cal.std['fy']:.1f}, cx {intrinsics.cx:.1f} +- {cal.std['cx']:.1f}, "
+                        f"cy {intrinsics.cy:.1f} +- {cal.std['cy']:.1f} px")
+        warnings.extend(cal.warnings)
     elif intrinsics is None:
         intrinsics = (Intrinsics.from_focal_px(focal_px, *size) if focal_px is not None
                       else Intrinsics.from_lens(lens_mm, sensor_width_mm, *size))
@@ -151,7 +158,8 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
     if lost_frames:
         warnings.append(f"tracking lost in {len(lost_frames)} of {len(detections)} frames: "
                         f"{_ranges(lost_frames)} ({'interpolated' if lost == 'interpolate' else 'left unkeyed'})")
-    return TrackResult(size, intrinsics, frames, target.extent, warnings)
+    return TrackResult(size, intrinsics, frames, target.extent, warnings,
+                       cal.to_json() if cal is not None else None)
 
 
 def _ranges(frames: list[int]) -> str:

@@ -7,7 +7,8 @@ import sys
 import time
 
 from ..errors import PlateLightError
-from ..exr_io import read_exr
+from ..wording import CLI_FLAGS, worded
+from ..hdr_io import read_probe
 from ..fileio import ensure_writable_folder, write_json_atomic
 from .equirect import from_pbrt_latlong
 from .maps import MAP_NAMES, SH_JSON_LMAX, MapSettings, compute_maps, write_maps
@@ -32,9 +33,10 @@ def _sizes(text: str) -> dict:
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("maps", help="probe EXR -> diffuse/glossy1/glossy2/specular maps and sh.json",
+    p = sub.add_parser("maps", help="probe EXR or .hdr -> diffuse/glossy1/glossy2/specular maps and sh.json",
                        description="Compute the four blurred maps of a lat-long probe.")
-    p.add_argument("env", metavar="ENV.exr", help="equirectangular probe (width = 2 x height)")
+    p.add_argument("env", metavar="ENV.exr|ENV.hdr",
+                   help="equirectangular probe, OpenEXR or Radiance .hdr (width = 2 x height)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--sampling", choices=("exact", "paper"), default="exact",
                    help="exact quadrature (default) or the paper's stratified sampling (Eq 8-9)")
@@ -58,13 +60,13 @@ def run(args) -> int:
     if args.sizes:
         settings.heights = args.sizes
     t0 = time.perf_counter()
-    env = read_exr(args.env)
+    env = read_probe(args.env)
     if args.layout == "pbrt":
         env = from_pbrt_latlong(env)
     read_s = time.perf_counter() - t0
     result = compute_maps(env, settings, which=args.maps)
     for warning in result.warnings:
-        print(f"platelight maps: warning: {warning}", file=sys.stderr)
+        print(f"platelight maps: warning: {worded(warning, CLI_FLAGS)}", file=sys.stderr)
     paths = write_maps(out, result.maps)
     write_json_atomic(os.path.join(out, "sh.json"), {
         "lmax": SH_JSON_LMAX,

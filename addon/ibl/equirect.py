@@ -135,3 +135,14 @@ def from_pbrt_latlong(image: np.ndarray) -> np.ndarray:
     w = image.shape[1]
     cols = (w // 2 - 1 - np.arange(w)) % w
     return np.ascontiguousarray(image[:, cols])
+
+
+def rotate_equirect(image: np.ndarray, rotation) -> np.ndarray:
+    """The lat-long map that shows in direction d what ``image`` shows in direction
+    ``rotation @ d`` (bilinear). A turn about Z keeps every texel in its row, so only the row is
+    interpolated; a turn by a multiple of one texel is an exact shift."""
+    check_shape(image)
+    h, w = image.shape[:2]
+    source = texel_directions(h, w) @ np.asarray(rotation, dtype=np.float64).T
+    u, v = dir_to_uv(source)
+    return sample_bilinear(image, u, v).astype(np.float32)

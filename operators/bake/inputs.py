@@ -11,7 +11,6 @@ import numpy as np
 from ...addon import names
 from ...addon.bake import culling, needs
 from ...addon.bake.hashing import content_hash
-from ..common import world_background
 
 
 
@@ -275,21 +274,3 @@ def world_description(scene):
         stamp = None
     return {"world": world.name_full, "tree": describe_tree(world.node_tree),
             "color": list(world.color), "probe": path, "probe_mtime": stamp}
-
-
-def environment_exr(world):
-    """(EXR path, strength) when the world is exactly an equirectangular EXR image feeding a
-    Background node into the World Output (no mapping, no colour nodes between); None when the
-    world has to be rendered instead to get it right."""
-    chain = world_background(world)
-    if chain is None:
-        return None
-    background, env = chain
-    if (env is None or background.inputs["Strength"].is_linked or env.image is None
-            or env.inputs["Vector"].is_linked or env.projection != "EQUIRECTANGULAR"):
-        return None
-    image = env.image
-    path = bpy.path.abspath(image.filepath, library=image.library)
-    if image.packed_file is not None or not path.lower().endswith(".exr") or not os.path.isfile(path):
-        return None
-    return path, float(background.inputs["Strength"].default_value)

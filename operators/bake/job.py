@@ -21,14 +21,14 @@ import numpy as np
 from ...addon.bake import culling, layout
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
-from ...addon.exr_io import read_exr
 from ...addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, write_maps
 from ..common import GEOMETRY_TYPES
-from .inputs import (Describer, environment_exr, maps_for, point_inside, probe_origin,
+from .inputs import (Describer, maps_for, point_inside, probe_origin,
                      renderable, visible_in_probe, world_bounds, world_description)
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
 from .records import pack_maps, probe_hash, world_maps_hash
 from .scene_state import SceneState
+from ..world_environment import probe_image
 
 
 class ProbeBake:
@@ -279,16 +279,12 @@ class ProbeBake:
         folder_rel = self.world_folder()
         folder = self.abspath(folder_rel)
         settings = self.map_settings()
-        strength = 1.0
-        if scene.platelight.world_probe:
-            source = self.abspath(scene.platelight.world_probe)
-        else:
-            found = environment_exr(scene.world)
-            source, strength = found if found else (None, 1.0)
-        if source is not None:
+        image = probe_image(scene)     # the world's EXR with its strength and Mapping rotation
+        source = image.path if image is not None else None
+        if image is not None:
             # Full-resolution maps from the image itself (not capped by the probe height).
             settings.heights = dict(DEFAULT_HEIGHTS)
-        digest = world_maps_hash(scene, self._world_digest, source, strength, settings)
+        digest = world_maps_hash(scene, self._world_digest, image, settings)
         cached = self.use_cache and layout.is_cached(folder, None, digest, MAP_NAMES)
         if self.check_only:
             for ob in self.world_only:
@@ -297,8 +293,8 @@ class ProbeBake:
                     self.stale.append((ob.name, None))
             return
         if not cached:
-            if source is not None:
-                env = read_exr(source, "RGB") * np.float32(strength)
+            if image is not None:
+                env = image.read()
             else:
                 hidden = [o for o in scene.objects if renderable(o, self.view_layer)]
                 env = self.render_probe((0.0, 0.0, 0.0), hidden=hidden)
@@ -393,8 +389,11 @@ def bake_probes(context, objects, frames, *, static=True, use_cache=True, reuse_
                     reuse_world=reuse_world, cull=cull)
     try:
         job.start()
-        while job.step():
-            if progress:
+        more = True
+        while more:
+            done = job.progress[0]
+            more = job.step()
+            if progress and job.progress[0] > done:     # after every unit, the last one too
                 progress(*job.progress)
     finally:
         job.end()

@@ -10,6 +10,7 @@ import tempfile
 
 import bpy
 
+from ... import compat
 from ...addon import names
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
@@ -78,7 +79,8 @@ class ProbeRenderer:
         state.set(render, "use_single_layer", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
-        state.set(fmt, "media_type", "IMAGE")
+        for attr, value in compat.still_image_format():
+            state.set(fmt, attr, value)
         state.set(fmt, "file_format", "OPEN_EXR")
         state.set(fmt, "color_mode", "RGB")
         state.set(fmt, "color_depth", "32")

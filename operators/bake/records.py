@@ -27,10 +27,14 @@ def probe_hash(scene, origin, maps, world_digest, seen):
     })
 
 
-def world_maps_hash(scene, world_digest, source, strength, map_settings):
-    """The hash of the world's own maps: from the EXR ``source`` (times ``strength``) or, when
-    None, from a probe render of the world alone (then the probe settings count too)."""
-    return content_hash({"world": world_digest, "source": source, "strength": strength,
+def world_maps_hash(scene, world_digest, image, map_settings):
+    """The hash of the world's own maps: from ``image`` (a WorldImage: an EXR, its strength and
+    rotation) or, when None, from a probe render of the world alone (then the probe settings
+    count too)."""
+    source = image.path if image is not None else None
+    return content_hash({"world": world_digest, "source": source,
+                         "strength": image.strength if image else None,
+                         "rotation": image.rotation if image else None,
                          "heights": map_settings.heights,
                          "sampling": map_settings.sampling,
                          "samples": None if source else scene.platelight.probe_samples,

@@ -116,7 +116,7 @@ def main(out_dir: pathlib.Path) -> None:
     scene.platelight.probe_height, scene.platelight.probe_samples = 64, 16
     importance = {}
     for label, limit in (("Cycles' own (1024 columns)", None),
-                         (f"probe cap ({bake_module("probe_render").PROBE_WORLD_MAP_RESOLUTION} columns)",
+                         (f"probe cap ({bake_module('probe_render').PROBE_WORLD_MAP_RESOLUTION} columns)",
                           bake_module("probe_render").PROBE_WORLD_MAP_RESOLUTION)):
         runs = []
         for _ in range(2):

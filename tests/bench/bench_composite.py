@@ -28,6 +28,7 @@ sys.path.insert(0, str(HERE.parent))
 import support  # noqa: E402
 import conftest  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
+from support import compat  # noqa: E402
 
 W, H = 128, 72
 TRUTH_SAMPLES = 512
@@ -60,7 +61,7 @@ def build(bpy, hdri_path, material):
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.seed = 7
     scene.view_settings.view_transform = "Standard"
-    world = bpy.data.worlds.new("Probe")
+    world = compat().new_world("Probe")
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdri_path)
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
@@ -72,7 +73,7 @@ def build(bpy, hdri_path, material):
     from mathutils import Vector
 
     cam.rotation_euler = Vector((1.9, 4.9, -1.9)).to_track_quat("-Z", "Y").to_euler()
-    floor_mat = bpy.data.materials.new("Floor")
+    floor_mat = compat().new_material("Floor")
     floor_mat.node_tree.nodes.clear()
     diffuse = floor_mat.node_tree.nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (0.45, 0.45, 0.45, 1)
@@ -92,7 +93,7 @@ def build(bpy, hdri_path, material):
     bm.free()
     for poly in smesh.polygons:
         poly.use_smooth = True
-    mat = bpy.data.materials.new("Sphere")
+    mat = compat().new_material("Sphere")
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*material["colour"], 1)
     bsdf.inputs["Roughness"].default_value = material["roughness"]

@@ -19,6 +19,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 import support  # noqa: E402,F401
 import conftest  # noqa: E402
 import sbrdf_scene as sc  # noqa: E402
+from support import compat  # noqa: E402
 
 SIZE = 96
 REFERENCE_SPP = {"mirror": 2048}
@@ -29,8 +30,7 @@ ALBEDO = 0.8
 
 
 def _principled(bpy, case):
-    mat = bpy.data.materials.new(f"Principled {case}")
-    mat.use_nodes = True
+    mat = compat().new_material(f"Principled {case}")
     node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     if case == "diffuse":
         node.inputs["Base Color"].default_value = (ALBEDO, ALBEDO, ALBEDO, 1)
@@ -121,7 +121,7 @@ def run(tmp: pathlib.Path):
         scene.cycles.max_bounces = 4
         scene.cycles.seed = 0
         scene.render.threads_mode = "AUTO"
-        world = bpy.data.worlds.new("HDRI")
+        world = compat().new_world("HDRI")
         scene.world = world
         node = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
         node.image = bpy.data.images.load(str(hdri))

@@ -119,7 +119,9 @@ def test_capture_probe_failure_leaves_scene_unchanged(bpy_clean, ball_photos, tm
     bpy = bpy_clean
     folder, names, _ = ball_photos
     before = _scene_state(bpy)
-    with pytest.raises(RuntimeError, match="at least two differently exposed brackets"):
+    # one photo is a valid input, but this one (the darkest bracket) shows no ball; the
+    # sentence names the operator's field, not the CLI's flag
+    with pytest.raises(RuntimeError, match="No mirror ball was found in the photo; give its circle with the Ball Circle field"):
         bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": names[0]}])
     with pytest.raises(RuntimeError, match="No EXIF exposure time") as refused:
         bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": n} for n in names])

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import support
+from support import compat
 from composite_scene import (H, SPHERE_C, SPHERE_R, W, add_camera, add_plane, add_sphere, add_sun,  # noqa: F401
                              build_scene, grey_world, ground_points, in_shadow, inner, ops_module,
                              random_plate, render, render_with_passes, sphere_hit)
@@ -115,11 +116,7 @@ def test_sun_shadow_falls_where_the_probe_sun_says(bpy_clean, tmp_path, method):
 
 
 def _group_test_tree(bpy, scene, images, settings):
-    old = bpy.data.node_groups.get("Group Test")
-    if old is not None:
-        bpy.data.node_groups.remove(old)
-    tree = bpy.data.node_groups.new("Group Test", "CompositorNodeTree")
-    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    tree = compat().new_compositor_tree(scene, "Group Test")
     group = importlib.import_module(f"{support.EXT_MODULE}.node_groups.composite").build_differential_group()
     node = tree.nodes.new("CompositorNodeGroup")
     node.node_tree = group
@@ -131,9 +128,7 @@ def _group_test_tree(bpy, scene, images, settings):
         tree.links.new(img.outputs["Image"], node.inputs[name])
     for name, value in settings.items():
         node.inputs[name].default_value = value
-    out = tree.nodes.new("NodeGroupOutput")
-    tree.links.new(node.outputs["Image"], out.inputs["Image"])
-    scene.compositing_node_group = tree
+    tree.links.new(node.outputs["Image"], compat().composite_output(tree))
     return tree
 
 

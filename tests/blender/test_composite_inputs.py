@@ -8,6 +8,7 @@ import pytest
 import support  # noqa: F401
 from platelight.addon.exr_io import read_exr, write_exr
 from composite_scene import add_camera, add_plane, add_sphere, add_sun, grey_world, random_plate, render
+from support import compat
 
 
 def png(path, rgb8):
@@ -26,9 +27,10 @@ def scene_state(bpy):
         "collections": sorted(c.name for c in bpy.data.collections),
         "objects": sorted((ob.name, tuple(sorted(c.name for c in ob.users_collection)), ob.is_shadow_catcher)
                           for ob in scene.objects),
-        "images": sorted(i.name for i in bpy.data.images),
+        # Blender's own render and viewer images (4.5 keeps a "Viewer Node") are not the scene's
+        "images": sorted(i.name for i in bpy.data.images if i.type not in {"RENDER_RESULT", "COMPOSITING"}),
         "node_groups": sorted(g.name for g in bpy.data.node_groups),
-        "tree": scene.compositing_node_group.name if scene.compositing_node_group else None,
+        "tree": compat().compositor_tree(scene).name if compat().compositor_tree(scene) else None,
         "view": scene.view_settings.view_transform,
         "engine": scene.render.engine,
     }
@@ -95,7 +97,9 @@ def test_rerunning_never_duplicates(bpy_clean, tmp_path):
         assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
     state = scene_state(bpy)
     assert state["images"] == ["PlateLight Plate"]
-    assert state["node_groups"] == ["PlateLight Composite", "PlateLight Differential"]
+    tree = compat().compositor_tree(bpy.context.scene)
+    own_tree = [tree.name] if tree.name in bpy.data.node_groups else []   # 4.5: the scene's own tree
+    assert state["node_groups"] == sorted(["PlateLight Differential"] + own_tree)
     assert [c for c in state["collections"] if c.startswith("PlateLight")] == ["PlateLight CG", "PlateLight Phantoms"]
     assert [n for n, use in state["view_layers"] if use] == [
         "PlateLight CG", "PlateLight Local", "PlateLight Local Without"]
@@ -226,10 +230,7 @@ def test_lights_from_probe_rerun_replaces_and_keeps_manual_lights(bpy_clean, stu
 def test_sun_moved_into_a_lamp_and_out_of_the_world(bpy_clean, studio_hdris):
     bpy = bpy_clean
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("Probe")
-    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
-    env.image = bpy.data.images.load(str(studio_hdris["sunrise"]))
-    scene.world = world
+    env = probe_world(bpy, scene, studio_hdris["sunrise"])
     for _ in range(2):  # a re-run starts again from the probe with its sun
         assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
     lamps = bpy.data.collections["PlateLight Lights"].objects
@@ -241,6 +242,55 @@ def test_sun_moved_into_a_lamp_and_out_of_the_world(bpy_clean, studio_hdris):
     assert sky.max() < 0.05 * read_exr(studio_hdris["sunrise"]).max()
     assert scene.platelight.world_probe == str(studio_hdris["sunrise"])
     assert 3.0 < lamps[0].data.energy < 10.0  # sunrise's sun: ~5 W/m² in probe units
+
+
+def probe_world(bpy, scene, exr, strength=1.0, turn_z=None):
+    """A world that shows ``exr`` (times ``strength``), turned about Z by a Mapping node."""
+    world = compat().new_world("Probe")
+    tree = world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(exr))
+    background = tree.nodes["Background"]
+    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    background.inputs["Strength"].default_value = strength
+    if turn_z is not None:
+        mapping = tree.nodes.new("ShaderNodeMapping")
+        coords = tree.nodes.new("ShaderNodeTexCoord")
+        tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+        tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+        mapping.inputs["Rotation"].default_value = (0.0, 0.0, turn_z)
+    scene.world = world
+    return env
+
+
+def _lamps(bpy):
+    """{name: (direction towards the light, energy)} of the lamps Lights from Probe made."""
+    from mathutils import Vector
+
+    return {ob.name: (np.array(ob.rotation_euler.to_matrix() @ Vector((0, 0, 1))), ob.data.energy)
+            for ob in bpy.data.collections["PlateLight Lights"].objects}
+
+
+@pytest.mark.parametrize("mode", ["LIGHTS", "SUN_SKY"])
+def test_lights_follow_a_turned_and_brightened_world(bpy_clean, studio_hdris, mode):
+    """A Mapping node's quarter turn about Z turns every lamp by it; a Background strength of 2
+    doubles their energy (the world shows the image at R·d, so an image direction e is the world
+    direction Rᵀe: +X of the image is -Y of the world)."""
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    probe_world(bpy, scene, studio_hdris["sunrise"])
+    assert bpy.ops.platelight.lights_from_probe(mode=mode, count=4) == {"FINISHED"}
+    plain = _lamps(bpy)
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    probe_world(bpy, scene, studio_hdris["sunrise"], strength=2.0, turn_z=math.pi / 2)
+    assert bpy.ops.platelight.lights_from_probe(mode=mode, count=4) == {"FINISHED"}
+    turned = _lamps(bpy)
+    assert sorted(turned) == sorted(plain) and "PlateLight Sun" in turned
+    quarter_back = np.array([[0, 1, 0], [-1, 0, 0], [0, 0, 1]])      # Rz(-90°)
+    for name, (direction, energy) in plain.items():
+        assert np.degrees(np.arccos(min(1.0, turned[name][0] @ (quarter_back @ direction)))) < 0.1, name
+        assert turned[name][1] == pytest.approx(2 * energy, rel=1e-4), name
 
 
 def test_sun_and_sky_needs_an_environment_texture(bpy_clean, studio_hdris):
@@ -277,8 +327,9 @@ def test_compositing_panel_draws_existing_operators(bpy_clean):
     panel_module.PLATELIGHT_PT_compositing.draw(type("P", (), {"layout": recorder})(), bpy.context)
     panel_module.PLATELIGHT_PT_clip_tracking.draw(type("P", (), {"layout": recorder})(), bpy.context)
     ops = [(args[0], vars(props)) for name, args, _, props in recorder.calls if name == "operator"]
-    assert len(ops) == 10
-    assert {"platelight.track_markers", "platelight.capture_probe"} <= {idname for idname, _ in ops}
+    assert len(ops) == 11
+    assert {"platelight.track_markers", "platelight.capture_probe",
+            "platelight.export_farm_job"} <= {idname for idname, _ in ops}
     for idname, settings in ops:
         op = getattr(bpy.ops, idname.split(".")[0])
         rna = getattr(op, idname.split(".")[1]).get_rna_type()

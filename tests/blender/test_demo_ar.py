@@ -5,6 +5,7 @@ import json
 import numpy as np
 
 import support  # noqa: F401
+from support import compat
 from platelight.drivers.demo_ar import run_ar_demo
 from platelight.addon.exr_io import read_exr
 
@@ -19,8 +20,9 @@ def test_ar_demo_small(bpy_clean, tmp_path):
         assert (tmp_path / "composite" / f"composite_{frame:04d}.png").exists()
         plate = read_exr(tmp_path / "plate" / f"plate_{frame:04d}.exr")
         comp = read_exr(tmp_path / "composite" / f"composite_{frame:04d}.exr")
-        cg = read_exr(tmp_path / "passes" / f"{frame:04d}" / "CG.exr", "RGBA")
-        shadows = read_exr(tmp_path / "passes" / f"{frame:04d}" / "Shadows.exr")
+        passes = str(tmp_path / "passes" / f"{frame:04d}")
+        cg = read_exr(compat().file_output_path(passes, "CG", frame), "RGBA")
+        shadows = read_exr(compat().file_output_path(passes, "Shadows", frame))
         on_cg = cg[..., 3] > 0.99
         assert on_cg.mean() > 0.03                          # the CG objects are in view
         assert np.abs(comp - plate)[on_cg].mean() > 0.02     # and change the picture there

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import support  # noqa: F401
+from support import compat
 from composite_scene import add_camera, add_plane, add_sphere, add_sun, grey_world, render_with_passes
 from platelight.addon.exr_io import write_exr
 
@@ -40,7 +41,7 @@ def grain_scene(bpy, tmp_path):
 def test_match_grain_gives_the_cg_the_plates_grain(bpy_clean, tmp_path, capfd):
     bpy = bpy_clean
     scene, plate = grain_scene(bpy, tmp_path)
-    tree = scene.compositing_node_group
+    tree = compat().compositor_tree(scene)
     diff = tree.nodes["PlateLight Differential"]
     clean, clean_passes = render_with_passes(bpy, scene, tmp_path / "clean")
     assert bpy.ops.platelight.match_grain() == {"FINISHED"}
@@ -74,7 +75,7 @@ def test_match_grain_gives_the_cg_the_plates_grain(bpy_clean, tmp_path, capfd):
     assert abs(np.corrcoef(other[:, 1], added[:, 1])[0, 1]) < 0.2
     assert bpy.ops.platelight.match_grain(seed=3) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(samples=8) == {"FINISHED"}
-    tree = scene.compositing_node_group
+    tree = compat().compositor_tree(scene)
     assert [i.name for i in bpy.data.images if i.name.startswith("PlateLight Grain")] == ["PlateLight Grain"]
     assert [n.name for n in tree.nodes if n.name.startswith("PlateLight Grain")] == ["PlateLight Grain"]
     assert tree.nodes["PlateLight Differential"].inputs["Grain"].is_linked
@@ -85,7 +86,7 @@ def test_match_grain_without_composite_or_plate_is_refused(bpy_clean, tmp_path):
     scene = bpy.context.scene
     add_camera(bpy, scene)
     add_sphere(bpy, scene)
-    before = (sorted(i.name for i in bpy.data.images), scene.compositing_node_group)
+    before = (sorted(i.name for i in bpy.data.images), compat().compositor_tree(scene))
     with pytest.raises(RuntimeError, match="no PlateLight composite"):
         bpy.ops.platelight.match_grain()
     grainy_plate(tmp_path / "plate.exr")
@@ -94,7 +95,7 @@ def test_match_grain_without_composite_or_plate_is_refused(bpy_clean, tmp_path):
         bpy.ops.platelight.match_grain()
     assert bpy.ops.platelight.setup_composite(samples=1) == {"FINISHED"}
     bpy.data.images.remove(bpy.data.images["PlateLight Plate"])
-    tree = scene.compositing_node_group
+    tree = compat().compositor_tree(scene)
     nodes = sorted(n.name for n in tree.nodes)
     with pytest.raises(RuntimeError, match="No plate found"):
         bpy.ops.platelight.match_grain()

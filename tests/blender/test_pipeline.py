@@ -32,6 +32,7 @@ import support
 from bake_scenes import material
 from sbrdf_scene import noise_free_emission_render
 from support import EXT_MODULE
+from support import compat
 
 RES_X, RES_Y = 96, 64
 ORTHO_SCALE = 3.3                  # the frame spans x in [-1.65, 1.65], z in [-1.1, 1.1]
@@ -169,7 +170,7 @@ def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     write_exr(tmp_path / "world.exr", small.astype(np.float32))
 
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("World")
+    world = compat().new_world("World")
     scene.world = world
     env_node = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env_node.image = bpy.data.images.load(str(tmp_path / "world.exr"))

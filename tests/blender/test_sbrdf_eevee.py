@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 
 import sbrdf_scene as sc
+from support import compat
 from platelight.addon.material.params import SBRDFParams
 
 CASES = {
@@ -36,7 +37,7 @@ def test_eevee_matches_cycles(bpy_module, tmp_path):
         mat.node_tree.links.new(coords.outputs["Object"], sm.sbrdf_node(mat).inputs["Normal"])
     cycles = sc.render(bpy, tmp_path / "cycles.exr")
     scene = bpy.context.scene
-    scene.render.engine = "BLENDER_EEVEE"
+    scene.render.engine = compat().EEVEE
     scene.eevee.taa_render_samples = 1
     scene.render.filter_size = 0.01
     eevee = sc.render(bpy, tmp_path / "eevee.exr")

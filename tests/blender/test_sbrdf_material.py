@@ -12,6 +12,7 @@ import sbrdf_scene as sc
 from platelight.addon import names
 from platelight.addon.material.params import PARAMETERS
 from platelight.addon.material.presets import PRESETS, preset_label, preset_params
+from support import compat
 
 
 def _sm():
@@ -27,7 +28,7 @@ def _sphere(bpy, name="Ball"):
 
 
 def _principled(bpy, name="Red"):
-    mat = bpy.data.materials.new(name)
+    mat = compat().new_material(name)
     node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     node.inputs["Base Color"].default_value = (0.8, 0.1, 0.05, 1.0)
     node.inputs["Roughness"].default_value = 0.0
