@@ -4,7 +4,7 @@ import sys
 from .cli import main
 
 code = main()
-if "bpy" in sys.modules:        # a subcommand ran Blender: its version may need another exit
+if "bpy" in sys.modules:        # a subcommand ran Blender: its shutdown is handled there
     from . import compat
 
     compat.exit_process(code)

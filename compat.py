@@ -36,8 +36,9 @@ EEVEE = "BLENDER_EEVEE_NEXT" if BLENDER_4 else "BLENDER_EEVEE"
 
 # ---- materials and worlds
 def node_tree(idblock):
-    """The shader node tree of a material or world, made on 4.5 where a new one has none."""
-    if idblock.node_tree is None and BLENDER_4:
+    """The shader node tree a material or world renders with; on 4.5 its nodes are switched on
+    (a new one has none until then, and one with them off renders without its tree)."""
+    if BLENDER_4 and not idblock.use_nodes:
         idblock.use_nodes = True
     return idblock.node_tree
 
@@ -189,16 +190,20 @@ def file_output_path(directory, name, frame):
 
 # ---- process exit
 def exit_process(code):
-    """End a process that ran bpy with exit status ``code``. Blender 4.5's bpy can deadlock in
-    its C exit handlers (a delayed file-close thread waits on a condition variable that a global
-    destructor is destroying), so there Python's own exit handlers run and the C ones are skipped."""
-    if not BLENDER_4:
-        return
-    import atexit
+    """End a process that ran bpy with exit status ``code``. What Blender prints while it shuts
+    down (its leak report, "Error: Not freed memory blocks ...") goes to stderr, so stdout holds
+    only the command's own output. Blender 4.5's bpy can deadlock in its C exit handlers (a
+    delayed file-close thread waits on a condition variable that a global destructor is
+    destroying), so there Python's own exit handlers run and the C ones are skipped."""
     import os
     import sys
 
-    atexit._run_exitfuncs()
     sys.stdout.flush()
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    if not BLENDER_4:
+        return
+    import atexit
+
+    atexit._run_exitfuncs()
     sys.stderr.flush()
     os._exit(int(code or 0))

@@ -24,6 +24,15 @@ PLATE_IMAGE = "PlateLight Plate"
 GRAIN_IMAGE = "PlateLight Grain"
 GRAIN_NODE = "PlateLight Grain"
 
+# --- lens distortion and phantoms (operators/lens.py, node_groups/redistortion.py, phantom_plate.py)
+PLATE_CLIP = "PlateLight Plate"             # the plate's Movie Clip, carrying the calibrated lens
+LENS_STMAP_IMAGE = "PlateLight Lens ST-Map"  # plate pixel -> where the undistorted render shows it
+PLATE_UNDISTORTED_IMAGE = "PlateLight Plate Undistorted"   # the camera's background image
+REDISTORT_NODE = "PlateLight Redistort"     # label of the Map UV nodes after the render layers
+PHANTOM_PLATE_MATERIAL = "PlateLight Phantom Plate"
+PHANTOM_ALBEDO_IMAGE = "PlateLight Phantom Albedo"   # plate / phantoms rendered white
+PHANTOM_WHITE_MATERIAL = "PlateLight Phantom White"  # the white override of that render
+
 # --- lights, tracking, world probe, bake
 LIGHTS_COLLECTION = "PlateLight Lights"
 LIGHT_PREFIX = "PlateLight"                # + " Sun" / " Sky 00": the lamps made from the probe
@@ -40,4 +49,6 @@ PRESETS_CAMERA = "PlateLight Presets Camera"
 
 # --- custom properties PlateLight stores on datablocks
 PLATE_FRAME_OFFSET_KEY = "platelight_frame_offset"   # on the plate image: file frame = scene frame + this
+LENS_KEY = "platelight_lens"   # on the scene: the calibrated lens {fx, fy, cx, cy, dist, width, height}
+KEPT_MATERIALS_KEY = "platelight_kept_materials"   # on a phantom: object-linked materials to give back
 GRAIN_SETTINGS_KEY = "platelight_grain"   # on the grain image: {"amount", "level", "response"} measured

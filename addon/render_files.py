@@ -65,3 +65,9 @@ def commit(tmp, final):
         raise PlateLightError(f"Blender did not write a complete image for {os.path.basename(final)}; "
                               "see the render log above.")
     replace_file(tmp, final, durable=True)
+
+
+def check_prefix(name: str) -> None:
+    """The frames' file name prefix: plain (no folder, not hidden: hidden names are temporaries)."""
+    if not name or os.sep in name or name.startswith("."):
+        raise PlateLightError(f"The output name must be a plain file name prefix, not {name!r}.")

@@ -9,7 +9,7 @@ import sys
 
 from ..addon.bake.frames import parse_frames, parse_part, split_frames
 from ..addon.errors import PlateLightError
-from ..addon.farm.progress import Progress, blender_output
+from ..addon.farm.progress import QUIET_HELP, Progress, blender_output
 from .headless import check_blend, import_bpy, open_blend, stdout_to_stderr
 
 
@@ -28,8 +28,7 @@ def add_parser(sub):
     parser.add_argument("--no-cull", action="store_true", help="bake objects that are off screen too")
     parser.add_argument("--samples", type=int, help="Cycles samples per probe (default: the scene's)")
     parser.add_argument("--height", type=int, help="probe height in pixels (default: the scene's)")
-    parser.add_argument("--quiet", action="store_true", help="farm logs: drop Blender's own render log "
-                        "(Cycles' 'Saved:' lines); keep PlateLight's progress lines")
+    parser.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     parser.add_argument("--save", action="store_true",
                         help="save the .blend afterwards (records each object's probe folder and status)")
     parser.set_defaults(func=run)

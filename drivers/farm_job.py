@@ -12,6 +12,7 @@ from ..addon.errors import PlateLightError
 from ..addon.farm import jobs
 from ..addon.farm.progress import blender_output
 from ..addon.fileio import ensure_writable_folder
+from ..addon.render_files import check_prefix
 from .headless import check_blend, import_bpy, open_blend
 
 
@@ -42,8 +43,7 @@ def run(args):
         raise PlateLightError(f"File not found: {blend} (save the scene there first).")
     check_blend(blend)
     frames = parse_frames(args.frames)
-    if not args.name or os.sep in args.name or args.name.startswith("."):
-        raise PlateLightError(f"--name must be a plain file name prefix, not {args.name!r}.")
+    check_prefix(args.name)
     ensure_writable_folder(args.out)
 
     bpy = import_bpy()

@@ -11,9 +11,9 @@ import sys
 
 from ..addon.bake.frames import parse_frames, parse_part, split_frames
 from ..addon.errors import PlateLightError
-from ..addon.farm.progress import Progress, blender_output
+from ..addon.farm.progress import QUIET_HELP, Progress, blender_output
 from ..addon.fileio import ensure_writable_folder, stale_temps, temp_path
-from ..addon.render_files import commit, frame_path, plan
+from ..addon.render_files import check_prefix, commit, frame_path, plan
 from .headless import check_blend, import_bpy, open_blend, stdout_to_stderr
 
 FORMATS = {"exr": ("OPEN_EXR", ".exr"), "png": ("PNG", ".png"),
@@ -39,8 +39,7 @@ def add_parser(sub):
                         "composite and named passes (CG, Shadows, Holdout, Depth, Normal, Cryptomatte)")
     parser.add_argument("--samples", type=int, help="Cycles samples per pixel (default: the scene's)")
     parser.add_argument("--force", action="store_true", help="render frames that are already complete too")
-    parser.add_argument("--quiet", action="store_true", help="farm logs: drop Blender's own render log "
-                        "(Cycles' 'Saved:' lines); keep PlateLight's progress lines")
+    parser.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     parser.set_defaults(func=run)
 
 
@@ -50,8 +49,7 @@ def run(args):
     frames = parse_frames(args.frames) if args.frames else None
     if args.samples is not None and not 1 <= args.samples <= 1 << 20:
         raise PlateLightError(f"--samples must be between 1 and {1 << 20}, not {args.samples}.")
-    if not args.name or os.sep in args.name or args.name.startswith("."):
-        raise PlateLightError(f"--name must be a plain file name prefix, not {args.name!r}.")
+    check_prefix(args.name)
     part = parse_part(args.part) if args.part else None
     if part:
         split_frames([], *part)      # says so now when the part does not exist

@@ -7,6 +7,7 @@ import bpy
 from .. import compat
 from ..addon import names
 from .composite import build_differential_group
+from .redistortion import wire_redistortion
 
 
 def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
@@ -116,6 +117,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     links.new(diff.outputs["Image"], out)
     scene.render.use_compositing = True
     wire_grain(scene, tree)      # grain matched earlier (platelight.match_grain) stays wired
+    wire_redistortion(scene, tree)   # a calibrated lens: the layers land through the plate's lens
     return tree
 
 
@@ -157,19 +159,26 @@ def wire_grain(scene, tree=None):
     return node
 
 
+def float_exr_file_output(tree, name, directory, inputs, location):
+    """The File Output node ``name`` of ``tree`` (made or reused) writing one float32 RGBA EXR per
+    input name into ``directory`` (compat.file_output_path names the files)."""
+    node = tree.nodes.get(name) or tree.nodes.new("CompositorNodeOutputFile")
+    node.name = node.label = name
+    node.location = location
+    compat.set_still_image(node.format)
+    node.format.file_format = "OPEN_EXR"
+    node.format.color_depth = "32"
+    node.format.color_mode = "RGBA"
+    compat.set_file_output(node, directory, inputs)
+    return node
+
+
 def add_pass_outputs(scene, directory):
     """Also write the group's CG and Shadows outputs and the plate as float EXRs into ``directory``
     (one file per pass; pass_output_path says which); used by the demo and the tests."""
     tree = compat.compositor_tree(scene)
     diff = tree.nodes[names.DIFFERENTIAL_GROUP]
-    node = tree.nodes.get(names.PASSES_NODE) or tree.nodes.new("CompositorNodeOutputFile")
-    node.name = node.label = names.PASSES_NODE
-    node.location = (400, -300)
-    compat.set_still_image(node.format)
-    node.format.file_format = "OPEN_EXR"
-    node.format.color_depth = "32"
-    node.format.color_mode = "RGBA"
-    compat.set_file_output(node, directory, ("CG", "Shadows", "Plate"))
+    node = float_exr_file_output(tree, names.PASSES_NODE, directory, ("CG", "Shadows", "Plate"), (400, -300))
     tree.links.new(diff.outputs["CG"], node.inputs["CG"])
     tree.links.new(diff.outputs["Shadows"], node.inputs["Shadows"])
     tree.links.new(tree.nodes["Plate"].outputs["Image"], node.inputs["Plate"])

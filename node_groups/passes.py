@@ -14,6 +14,7 @@ from .. import compat
 from ..addon import names
 from ..addon.errors import PlateLightError
 from ..addon.farm.multilayer import CRYPTO_LEVELS, CRYPTO_NAME, assemble
+from .compositor_tree import float_exr_file_output
 # file stem -> (node, output socket) in the PlateLight Composite tree
 _SOURCES = (("CG", "diff", "CG"), ("Shadows", "diff", "Shadows"), ("Depth", "layer", "Depth"),
             ("Normal", "layer", "Normal"),
@@ -32,15 +33,8 @@ def wire_pass_files(scene, directory):
     layer.use_pass_cryptomatte_object = True
     layer.pass_cryptomatte_depth = 2 * CRYPTO_LEVELS
     nodes = {"diff": tree.nodes[names.DIFFERENTIAL_GROUP], "layer": tree.nodes[names.LAYER_CG]}
-    node = tree.nodes.get(names.PASS_FILES_NODE) or tree.nodes.new("CompositorNodeOutputFile")
-    node.name = node.label = names.PASS_FILES_NODE
-    node.location = (400, -600)
-    compat.set_still_image(node.format)
-    node.format.file_format = "OPEN_EXR"
-    node.format.color_depth = "32"
-    node.format.color_mode = "RGBA"
+    node = float_exr_file_output(tree, names.PASS_FILES_NODE, directory, PASS_FILES, (400, -600))
     node.format.exr_codec = "NONE"          # a scratch file, read once
-    compat.set_file_output(node, directory, PASS_FILES)
     for stem, owner, socket in _SOURCES:
         tree.links.new(nodes[owner].outputs[socket], node.inputs[stem])
     return node
@@ -70,12 +64,10 @@ class MultilayerPasses:
 
     def join(self, frame, composite):
         """Replace the frame's rendered ``composite`` (a temporary file) by the multilayer file."""
-        files = {}
-        for stem in PASS_FILES:
-            found = sorted(glob.glob(os.path.join(glob.escape(self.scratch), glob.escape(stem) + "*.exr")))
-            if not found:
+        files = {stem: compat.file_output_path(self.scratch, stem, frame) for stem in PASS_FILES}
+        for stem, path in files.items():
+            if not os.path.isfile(path):
                 raise PlateLightError(f"Blender wrote no {stem} pass for frame {frame}; see the render log.")
-            files[stem] = found[-1]
         joined = composite + ".joined.exr"
         assemble(composite, files, self.phantoms, joined)
         os.replace(joined, composite)

@@ -3,7 +3,7 @@
 import importlib
 
 _MODULES = ("bake", "material", "track", "capture_probe", "composite", "plate", "lights", "grain",
-            "farm_job")
+            "farm_job", "lens")
 
 
 def _load():

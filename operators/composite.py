@@ -23,6 +23,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 from ..addon import names
 from ..node_groups.compositor_tree import build_compositor_tree
 from .common import GEOMETRY_TYPES, find_plate_image, set_plate_colour_management
+from .phantom_surface import apply_phantom_surfaces
 
 
 def classify_objects(scene):
@@ -168,6 +169,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         for ob in phantoms:
             ob.is_shadow_catcher = self.method == "CATCHER"
             ob.is_holdout = False
+        apply_phantom_surfaces(scene, phantoms)   # the plate on the phantoms (or their own materials)
 
         ours = {names.LAYER_CG} if self.method == "CATCHER" else {names.LAYER_CG, names.LAYER_LOCAL, names.LAYER_WITHOUT}
         for layer in scene.view_layers:

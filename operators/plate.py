@@ -2,8 +2,8 @@
 match the scene to it (size, frame range, frame rate, camera background, colour management).
 
 Re-running it updates the one plate image ("PlateLight Plate") instead of adding another.
-Colour spaces are explicit: float files (EXR, HDR) are scene-linear, 8/16-bit files are sRGB;
-with the Standard view transform an sRGB plate comes out as it went in.
+Colour spaces are explicit: taken from the file where it says (operators/plate_colour.py) or set
+by the user (colorspace=...); with the Standard view transform the plate comes out as it went in.
 """
 import os
 
@@ -14,6 +14,7 @@ from ..addon import names
 from ..addon.errors import PlateLightError
 from ..addon.footage import MOVIE_EXTENSIONS, frame_rate_pair, scan_sequence
 from .common import NeedsScene, report_error, set_plate_colour_management
+from .plate_colour import apply_plate_colour_space, check_colour_space, search_colour_spaces
 
 
 def _camera_is_animated(camera):
@@ -38,13 +39,17 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
     )
     fps: FloatProperty(name="Frame Rate", description="Frame rate of an image sequence (0: keep the "
                        "scene's)", default=0.0, min=0.0, max=1000.0)
+    colorspace: StringProperty(name="Colour Space", description="How the plate's pixels are encoded "
+                               "(empty: as its file says; e.g. sRGB, Linear Rec.709, ACEScg, a camera log)",
+                               default="", search=search_colour_spaces)
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
 
     def _load(self, path):
-        """(image, (width, height), first, count, fps or None) without touching the scene."""
+        """(image, (width, height), first, count, fps or None, colour-space reason) without touching
+        the scene."""
         ext = os.path.splitext(path)[1].lower()
         if ext in MOVIE_EXTENSIONS:
             clip = bpy.data.movieclips.load(path)
@@ -64,13 +69,12 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
             raise PlateLightError(f"Blender cannot read {path} as an image or movie.") from None
         # read the size as a still first: a sequence reports 0×0 until a frame is shown
         size = tuple(image.size)
-        is_float = image.is_float
         image.source = source
         if size[0] == 0 or size[1] == 0:
             bpy.data.images.remove(image)
             raise PlateLightError(f"Blender cannot read {path} as an image or movie.")
-        image.colorspace_settings.name = "Linear Rec.709" if is_float else "sRGB"
-        return image, size, first, count, fps
+        colour_reason = apply_plate_colour_space(image, path, self.colorspace)
+        return image, size, first, count, fps, colour_reason
 
     def execute(self, context):
         scene = context.scene
@@ -78,8 +82,12 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
         if not self.filepath or not os.path.isfile(path):
             self.report({"ERROR"}, f"Plate file not found: {self.filepath or '(no file given)'}.")
             return {"CANCELLED"}
+        bad_colour_space = check_colour_space(self.colorspace)
+        if bad_colour_space:
+            self.report({"ERROR"}, bad_colour_space)
+            return {"CANCELLED"}
         try:
-            image, (width, height), first, count, clip_fps = self._load(path)
+            image, (width, height), first, count, clip_fps, colour_reason = self._load(path)
         except PlateLightError as err:
             report_error(self, err)
             return {"CANCELLED"}
@@ -127,7 +135,7 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
             background.image_user.frame_start = 1
             background.image_user.frame_duration = count
             background.image_user.frame_offset = first - 1
-        kind = "HDR, linear" if image.colorspace_settings.name != "sRGB" else "8/16-bit, sRGB"
+        kind = f"{image.colorspace_settings.name}: {colour_reason}"
         self.report({"INFO"}, f"Plate: {count} frame(s) of {width}×{height} ({kind})"
                     + (f"; adopted: {'; '.join(mismatch)}" if mismatch else "") + ".")
         if camera is None:

@@ -7,7 +7,10 @@ from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from mathutils import Matrix
 
 from ..addon import names
+from ..addon.compositing.lens import has_distortion
+from ..addon.errors import PlateLightError
 from .common import NeedsScene, report_error
+from .lens import apply_lens, set_pinhole
 
 
 _DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_5X5_50", "DICT_5X5_100",
@@ -79,7 +82,6 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         from ..addon.capture.intrinsics import load_calibration
         from ..addon.capture.targets import CharucoTarget, MarkerTarget
         from ..addon.capture.tracking import track
-        from ..addon.errors import PlateLightError
 
         scene = context.scene
         source = bpy.path.abspath(self.filepath) if self.filepath else _plate_path(context)
@@ -110,6 +112,13 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         # Only now, with every frame solved, is the scene changed.
         camera = self._camera(context, sensor)
         self._apply(scene, camera, result, sensor)
+        intr = result.intrinsics
+        if has_distortion(intr.dist_array()):
+            try:   # the render camera sees the whole distorted frame; the compositor redistorts
+                apply_lens(scene, camera, intr.fx, intr.fy, intr.cx, intr.cy, intr.dist_array(),
+                           *result.image_size)
+            except PlateLightError as err:
+                self.report({"WARNING"}, f"The lens distortion is not carried into the scene: {err}")
         self._phantom_plane(context, result.target_extent)
         for warning in result.warnings:
             self.report({"WARNING"}, warning)
@@ -132,21 +141,11 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
         intr = result.intrinsics
         scene.render.resolution_x, scene.render.resolution_y = width, height
         scene.render.resolution_percentage = 100
-        # Non-square pixels (fx != fy): Blender's pixel aspect is width/height of a pixel = fy/fx,
-        # and both of its fields must be >= 1. Calibrations within 0.5 % keep square pixels.
-        ratio = intr.fy / intr.fx
-        if abs(ratio - 1) < 0.005:
-            ratio = 1.0
-        scene.render.pixel_aspect_x = max(ratio, 1.0)
-        scene.render.pixel_aspect_y = max(1.0 / ratio, 1.0)
         cam = camera.data
         cam.type = "PERSP"
         cam.sensor_fit = "HORIZONTAL"
         cam.sensor_width = sensor
-        cam.lens = intr.fx * sensor / width
-        # OpenCV's principal point (pixel centres at integers) -> Blender's shift (in image widths)
-        cam.shift_x = -(intr.cx - (width - 1) / 2) / width
-        cam.shift_y = (intr.cy - (height - 1) / 2) / width
+        set_pinhole(scene, cam, intr.fx, intr.fy, intr.cx, intr.cy, width, height)
         camera.rotation_mode = "QUATERNION"
         _clear_transform_keys(camera)
         first = scene.frame_start

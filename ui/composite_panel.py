@@ -22,6 +22,7 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         col.label(text=f"Plate: {plate.filepath if plate else 'none'}", icon="IMAGE_DATA")
         col.operator("platelight.setup_plate", icon="FILE_MOVIE")
         col.operator("platelight.track_markers", text="Track Markers (ArUco / ChArUco)", icon="TRACKER")
+        col.operator("platelight.setup_lens", text="Lens Distortion from Calibration", icon="CAMERA_DATA")
         col = layout.column(align=True)
         probe = scene.platelight.world_probe
         col.label(text=f"Light probe: {bpy.path.basename(probe) if probe else 'world texture'}",
@@ -35,6 +36,7 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         col = layout.column(align=True)
         tree = compat.compositor_tree(scene)
         col.label(text=f"Composite: {tree.name if tree else 'not set up'}", icon="NODE_COMPOSITING")
+        col.prop(scene.platelight, "phantom_surface")
         row = col.row(align=True)
         row.operator("platelight.setup_composite", text="Shadow Catcher").method = "CATCHER"
         row.operator("platelight.setup_composite", text="Differential").method = "DIFFERENTIAL"

@@ -24,6 +24,8 @@ class PLATELIGHT_PT_object(bpy.types.Panel):
         layout.use_property_split = True
         layout.prop(settings, "enabled")
         layout.prop(settings, "phantom")
+        if settings.phantom:
+            layout.prop(settings, "phantom_surface")
         col = layout.column()
         col.active = settings.enabled and not settings.phantom
         col.prop(settings, "probe_origin")

@@ -22,6 +22,16 @@ class PlateLightObjectSettings(bpy.types.PropertyGroup):
         default=False,
         options=set(),
     )
+    phantom_surface: EnumProperty(
+        name="Phantom Surface",
+        description="What this phantom looks like in reflections, bounced light and probes",
+        items=(
+            ("SCENE", "Scene Setting", "As the scene's Phantom Surface says"),
+            ("PLATE", "Plate", "The plate, projected from the plate's camera"),
+            ("MATERIAL", "Own Material", "The object's own (hand-made) material"),
+        ),
+        default="SCENE",
+    )
     probe_dir: StringProperty(
         name="Probe Folder",
         description="Folder holding this object's diffuse/glossy1/glossy2/specular EXR maps",
@@ -98,6 +108,18 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         description="Also pack the baked maps into the .blend (one image per map file, updated in "
         "place on re-bake), so the file renders without its maps folder",
         default=False,
+    )
+    phantom_surface: EnumProperty(
+        name="Phantom Surface",
+        description="What phantoms look like in reflections, bounced light and probes (each "
+        "phantom may override it)",
+        items=(
+            ("PLATE", "Plate", "The real surfaces' albedo, estimated from the plate and shaded by the "
+             "scene's lights: CG reflects the real surfaces, with its shadows, and their colours "
+             "bleed onto it"),
+            ("MATERIAL", "Own Material", "Each phantom's own (hand-made) material"),
+        ),
+        default="PLATE",
     )
     sampling: EnumProperty(
         name="Sampling",

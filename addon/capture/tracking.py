@@ -121,8 +121,8 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
                       else Intrinsics.from_lens(lens_mm, sensor_width_mm, *size))
     tracker.intrinsics = intrinsics
     if np.any(intrinsics.dist_array() != 0):
-        warnings.append("the poses use the calibrated lens distortion, which a Blender camera cannot "
-                        "represent: undistort the plate (e.g. a Movie Distortion node) before compositing")
+        warnings.append("the poses use the calibrated lens distortion: in Blender the CG is rendered "
+                        "undistorted with overscan and redistorted onto the plate (platelight.setup_lens)")
 
     solved = {}
     for frame, det in found:

@@ -9,6 +9,9 @@ import sys
 import time
 
 
+QUIET_HELP = "farm logs: drop Blender's own log (Cycles' 'Saved:' lines); keep PlateLight's progress lines"
+
+
 def _duration(seconds: float) -> str:
     seconds = int(round(seconds))
     if seconds < 60:

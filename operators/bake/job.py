@@ -23,6 +23,7 @@ from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
 from ...addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, write_maps
 from ..common import GEOMETRY_TYPES
+from ..phantom_surface import apply_phantom_surfaces
 from .inputs import (Describer, maps_for, point_inside, probe_origin,
                      renderable, visible_in_probe, world_bounds, world_description)
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
@@ -114,6 +115,8 @@ class ProbeBake:
         root = self.abspath(self.maps_root())
         if not self.check_only:
             layout.check_writable(root)
+            # before any hash: the plate projected onto phantoms (or their own materials)
+            apply_phantom_surfaces(scene, [ob for ob in scene.objects if ob.platelight.phantom])
         self._plan()
 
     def _plan(self):

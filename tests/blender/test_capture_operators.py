@@ -15,6 +15,7 @@ from platelight.addon.capture.boards import write_target
 from platelight.addon.capture.poses import rotation_error_deg
 from platelight.addon.capture.targets import MarkerTarget
 from platelight.addon.exr_io import read_exr
+from support import compat
 from test_capture_probe import brackets, forward_ball, smooth_env
 
 FRAMES = 4
@@ -113,6 +114,46 @@ def test_capture_probe_sets_world(bpy_clean, ball_photos, tmp_path):
     assert result == {"FINISHED"}
     assert sum(1 for n in scene.world.node_tree.nodes if n.type == "TEX_ENVIRONMENT") == 1
     assert np.allclose(np.roll(probe, -16, axis=1), read_exr(out), rtol=1e-4, atol=1e-6)
+
+
+def test_captured_probe_lights_the_bake_as_the_turned_brightened_world_shows_it(bpy_clean, ball_photos,
+                                                                               tmp_path):
+    """The probe goes into the world's probe node, which keeps its Mapping (a quarter turn) and
+    the Background its strength (2): the world maps follow both, as Cycles shows the world."""
+    from bake_scenes import add_sphere, read_map
+    from platelight.addon import names
+    from platelight.addon.ibl.maps import MapSettings, compute_maps
+
+    bpy = bpy_clean
+    folder, photo_names, _ = ball_photos
+    scene = bpy.context.scene
+    scene.world = compat().new_world("Set")
+    tree = scene.world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.name = names.WORLD_PROBE_NODE
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.pi / 2)
+    tree.nodes["Background"].inputs["Strength"].default_value = 2.0
+    scene.camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(scene.camera)
+    scene.camera.location = (0.0, -10.0, 0.0)
+    scene.camera.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    out = tmp_path / "world.exr"
+    assert bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": n} for n in photo_names],
+                                            exposures="1/500,1/125,1/30,1/8", height=32,
+                                            output=str(out)) == {"FINISHED"}
+    add_sphere(bpy, "Alone", (0, 0, 0))                # sees only the world: the world maps
+    assert bpy.ops.platelight.bake_probes(all_objects=True, cull=False) == {"FINISHED"}
+    probe = read_exr(out)
+    turned = compute_maps(np.roll(probe, probe.shape[1] // 4, axis=1), MapSettings(), which=("diffuse",))
+    np.testing.assert_allclose(read_map(tmp_path, "_world", "diffuse"), 2 * turned.maps["diffuse"],
+                               rtol=1e-4, atol=1e-6)
+    unturned = compute_maps(probe, MapSettings(), which=("diffuse",)).maps["diffuse"]
+    assert np.abs(unturned - turned.maps["diffuse"]).max() > 0.1 * unturned.max()   # the turn shows
 
 
 def test_capture_probe_failure_leaves_scene_unchanged(bpy_clean, ball_photos, tmp_path):

@@ -96,7 +96,7 @@ def test_rerunning_never_duplicates(bpy_clean, tmp_path):
         bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr"))
         assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
     state = scene_state(bpy)
-    assert state["images"] == ["PlateLight Plate"]
+    assert state["images"] == ["PlateLight Phantom Albedo", "PlateLight Plate"]   # one of each
     tree = compat().compositor_tree(bpy.context.scene)
     own_tree = [tree.name] if tree.name in bpy.data.node_groups else []   # 4.5: the scene's own tree
     assert state["node_groups"] == sorted(["PlateLight Differential"] + own_tree)
@@ -327,8 +327,8 @@ def test_compositing_panel_draws_existing_operators(bpy_clean):
     panel_module.PLATELIGHT_PT_compositing.draw(type("P", (), {"layout": recorder})(), bpy.context)
     panel_module.PLATELIGHT_PT_clip_tracking.draw(type("P", (), {"layout": recorder})(), bpy.context)
     ops = [(args[0], vars(props)) for name, args, _, props in recorder.calls if name == "operator"]
-    assert len(ops) == 11
-    assert {"platelight.track_markers", "platelight.capture_probe",
+    assert len(ops) == 12
+    assert {"platelight.track_markers", "platelight.capture_probe", "platelight.setup_lens",
             "platelight.export_farm_job"} <= {idname for idname, _ in ops}
     for idname, settings in ops:
         op = getattr(bpy.ops, idname.split(".")[0])

@@ -1,0 +1,103 @@
+"""The phantoms' albedo from the plate (bpy), Debevec 1998's local-scene estimate: render the
+phantoms white (albedo 1) under the scene's lights, without the CG, from the plate's camera;
+the real surface's albedo is then plate / that render, per pixel. A phantom with that albedo,
+shaded by the scene's lights, shows the plate where nothing changes and darkens where the CG
+shadows it, in reflections and probes as on the catcher.
+
+The map is made in the render camera's frame (undistorted when the scene has a lens) at the
+scene's current frame, and the material projects it with that frame's camera pose, frozen, so
+the albedo stays on the phantoms when the camera moves."""
+import os
+
+import bpy
+import numpy as np
+
+from .. import compat
+from ..addon import names
+from ..addon.compositing import lens
+from ..addon.exr_io import read_exr, write_exr
+from .bake.scene_state import SceneState
+from .common import GEOMETRY_TYPES
+from .common import data_folder
+
+ALBEDO_SAMPLES = 32      # the white render's samples (then OIDN): its noise becomes albedo noise
+MIN_SHADING = 1e-4       # below this the white render saw no light: the albedo is unknown there
+# Albedos above 1 are kept up to this: a plate brighter than the scene's lights can make (probe
+# and plate exposed differently) still comes back as itself; the cap keeps phantoms lighting
+# each other from running away.
+MAX_ALBEDO = 4.0
+
+
+def _white(name=names.PHANTOM_WHITE_MATERIAL):
+    mat = bpy.data.materials.get(name) or compat.new_material(name)
+    tree = compat.node_tree(mat)
+    tree.nodes.clear()
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    tree.links.new(diffuse.outputs[0], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    return mat
+
+
+def _render_white(scene, view_layer, phantoms, path):
+    """The phantoms rendered white from the scene camera, without anything else: (H, W, 4)."""
+    state = SceneState()
+    try:
+        for ob in scene.objects:
+            if ob.type in GEOMETRY_TYPES and ob not in phantoms and not ob.hide_render:
+                state.set(ob, "hide_render", True)
+        for ob in phantoms:
+            state.set(ob, "is_shadow_catcher", False)
+            state.set(ob, "is_holdout", False)
+        stack = [view_layer.layer_collection]
+        while stack:
+            layer_collection = stack.pop()
+            for flag in ("holdout", "indirect_only", "exclude"):
+                if getattr(layer_collection, flag):
+                    state.set(layer_collection, flag, False)
+            stack.extend(layer_collection.children)
+        state.set(view_layer, "material_override", _white())
+        render = scene.render
+        state.set(render, "engine", "CYCLES")
+        state.set(render, "film_transparent", True)
+        state.set(render, "use_compositing", False)
+        state.set(render, "use_single_layer", True)
+        state.set(render, "filepath", path)
+        fmt = render.image_settings
+        for attr, value in compat.still_image_format():
+            state.set(fmt, attr, value)
+        state.set(fmt, "file_format", "OPEN_EXR")
+        state.set(fmt, "color_mode", "RGBA")
+        state.set(fmt, "color_depth", "32")
+        state.set(scene.cycles, "samples", ALBEDO_SAMPLES)
+        state.set(scene.cycles, "use_denoising", True)
+        state.set(scene.cycles, "use_adaptive_sampling", False)
+        # each pixel its own area, like a plate pixel: no blur across pixels
+        state.set(scene.cycles, "pixel_filter_type", "BOX")
+        state.set(scene.cycles, "filter_width", 1.0)
+        bpy.ops.render.render(write_still=True, layer=view_layer.name)
+        return read_exr(path, "RGBA")
+    finally:
+        state.restore()
+
+
+def phantom_albedo(scene, view_layer, phantoms, plate, calib):
+    """Write the albedo map; returns (path, world-to-camera 4x4 of the frame it was made at).
+    ``calib`` = (fx, fy, cx, cy, dist, width, height) of the plate's lens."""
+    from .grain import plate_frame_pixels
+
+    folder = data_folder(scene, "phantoms")
+    os.makedirs(folder, exist_ok=True)
+    white = _render_white(scene, view_layer, phantoms, os.path.join(folder, "white.exr"))
+    pixels = plate_frame_pixels(plate, scene)[..., :3].astype(np.float32)
+    fx, fy, cx, cy, dist, width, height = calib
+    if lens.has_distortion(dist):
+        frame = lens.render_frame(fx, fy, cx, cy, dist, width, height)
+        pixels = lens.undistort_to_render(pixels, fx, fy, cx, cy, dist, frame)
+    seen = (white[..., 3] > 0.5) & (white[..., :3].min(-1) > MIN_SHADING)
+    albedo = np.zeros_like(pixels)
+    albedo[seen] = np.clip(pixels[seen] / white[..., :3][seen], 0.0, MAX_ALBEDO)
+    fallback = np.median(albedo[seen], axis=0) if seen.any() else np.full(3, 0.5)
+    albedo[~seen] = fallback
+    path = os.path.join(folder, "albedo.exr")
+    write_exr(path, np.concatenate([albedo, seen[..., None].astype(np.float32)], -1))
+    return path, np.array(scene.camera.matrix_world.inverted()), fallback
