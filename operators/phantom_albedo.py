@@ -80,6 +80,14 @@ def _render_white(scene, view_layer, phantoms, path):
         state.restore()
 
 
+def _same_pixels(path, image):
+    try:
+        old = read_exr(path, "RGBA")
+    except Exception:       # unreadable or another layout: write it again
+        return False
+    return old.shape == image.shape and np.array_equal(old, image)
+
+
 def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     """Write the albedo map; returns (path, world-to-camera 4x4 of the frame it was made at).
     ``calib`` = (fx, fy, cx, cy, dist, width, height) of the plate's lens."""
@@ -99,5 +107,9 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     fallback = np.median(albedo[seen], axis=0) if seen.any() else np.full(3, 0.5)
     albedo[~seen] = fallback
     path = os.path.join(folder, "albedo.exr")
-    write_exr(path, np.concatenate([albedo, seen[..., None].astype(np.float32)], -1))
+    image = np.concatenate([albedo, seen[..., None].astype(np.float32)], -1)
+    # an unchanged albedo keeps its file (and mtime): the bake's input hash describes images by
+    # mtime, so rewriting the same pixels would make every bake redo every probe
+    if not (os.path.isfile(path) and _same_pixels(path, image)):
+        write_exr(path, image)
     return path, np.array(scene.camera.matrix_world.inverted()), fallback
