@@ -9,6 +9,7 @@ import importlib
 import sys
 
 from .addon.errors import PlateLightError
+from .addon.wording import CLI_FLAGS as FLAGS
 
 # subcommand -> module (relative to this package) that defines add_parser(); the engine's
 # commands run without Blender, the drivers' start headless Blender (drivers/headless.py)
@@ -41,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except PlateLightError as err:
-        print(f"platelight {args.command}: error: {err}", file=sys.stderr)
+        print(f"platelight {args.command}: error: {err.worded(FLAGS)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"platelight {args.command}: interrupted; nothing half-written was left.", file=sys.stderr)

@@ -102,5 +102,5 @@ def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:
     names = "RGBA"[: data.shape[2]]
     channels = {n: np.ascontiguousarray(data[..., i]) for i, n in enumerate(names)}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with atomic_path(path, suffix=".exr") as tmp:
+    with atomic_path(path) as tmp:
         OpenEXR.File(header, channels).write(tmp)

@@ -1,12 +1,16 @@
-"""Small file helpers shared by the CLI and operators: atomic text writes, writable folders."""
+"""Small file helpers shared by the CLI, the drivers and operators: writable folders, and whole
+files only: every file is written under a hidden temporary name in its own folder and renamed into
+place (one rename on the same file system), so a reader or a killed job never sees half of it."""
 from __future__ import annotations
 
 import contextlib
+import glob
 import json
 import os
-import tempfile
 
 from .errors import PlateLightError
+
+PARTIAL = ".partial-"
 
 
 def ensure_writable_folder(folder: str | os.PathLike) -> str:
@@ -23,17 +27,49 @@ def ensure_writable_folder(folder: str | os.PathLike) -> str:
     return folder
 
 
+def temp_path(final: str | os.PathLike) -> str:
+    """A hidden name beside ``final`` (``.NAME.partial-PID.EXT``: the rename never crosses file
+    systems, a glob of NAME_*.EXT never sees it, the extension tells writers the format), unique
+    to this process."""
+    folder, base = os.path.split(os.fspath(final))
+    stem, ext = os.path.splitext(base)
+    return os.path.join(folder, f".{stem}{PARTIAL}{os.getpid()}{ext}")
+
+
+def stale_temps(final: str | os.PathLike) -> list[str]:
+    """Temporary files left for ``final`` by earlier, interrupted processes."""
+    folder, base = os.path.split(os.fspath(final))
+    stem, ext = os.path.splitext(base)
+    return glob.glob(os.path.join(glob.escape(folder), f".{glob.escape(stem)}{PARTIAL}*{ext}"))
+
+
+def _fsync(path, directory=False):
+    fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def replace_file(tmp: str, final: str, durable: bool = False) -> None:
+    """Rename the finished ``tmp`` over ``final``; ``durable`` flushes the file to disk first and
+    the folder's entry after, so a machine that dies right then keeps the old or the new file."""
+    if durable:
+        _fsync(tmp)
+    os.replace(tmp, final)
+    if durable:
+        _fsync(os.path.dirname(os.path.abspath(final)), directory=True)
+
+
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str = ""):
-    """Yield a temporary path in ``path``'s folder; on success it is renamed over ``path`` (a
-    reader never sees a half-written file), on any failure it is removed and ``path`` is kept."""
+def atomic_path(path: str | os.PathLike, durable: bool = False):
+    """Yield a temporary path beside ``path`` (temp_path); on success it is renamed over ``path``,
+    on any failure it is removed and ``path`` is kept."""
     path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=suffix, dir=folder)
-    os.close(fd)
+    tmp = temp_path(os.path.abspath(path))
     try:
         yield tmp
-        os.replace(tmp, path)
+        replace_file(tmp, path, durable)
     except OSError as exc:
         raise PlateLightError(f"Cannot write {path}: {exc.strerror}") from None
     finally:

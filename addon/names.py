@@ -43,6 +43,7 @@ PHANTOM_WHITE_MATERIAL = "PlateLight Phantom White"  # the white override of tha
 
 # --- lights, tracking, world probe, bake
 LIGHTS_COLLECTION = "PlateLight Lights"
+LIGHT_PREFIX = "PlateLight"                # + " Sun" / " Sky 00": the lamps made from the probe
 TRACK_CAMERA = "PlateLight Camera"
 MARKER_PLANE = "PlateLight Marker Plane"
 WORLD = "PlateLight World"

@@ -7,35 +7,19 @@ Blender 5.0 does not write its output files atomically: `render(animation=True)`
 a job killed while writing leaves a truncated file under the final name (2 of 3 kills aimed at the
 write did, docs/compositing.md), and Blender's own resume (Overwrite off, Placeholders on) then
 skips that broken file forever. Hence a hidden temporary name in the same folder
-(`.NAME_0007.partial-PID.exr`), checked, flushed to disk and renamed into place."""
+(`.NAME_0007.partial-PID.exr`, fileio.temp_path), checked, flushed to disk and renamed into place."""
 from __future__ import annotations
 
-import glob
 import os
 
 from .errors import PlateLightError
+from .fileio import replace_file
 
-PARTIAL = ".partial-"
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
 def frame_path(folder, name, frame, ext):
     return os.path.join(folder, f"{name}_{frame:04d}{ext}")
-
-
-def temp_path(final):
-    """A hidden name in the final file's folder (so the rename never crosses file systems and a
-    glob of NAME_*.EXT never sees it), unique to this process."""
-    folder, base = os.path.split(final)
-    stem, ext = os.path.splitext(base)
-    return os.path.join(folder, f".{stem}{PARTIAL}{os.getpid()}{ext}")
-
-
-def stale_temps(final):
-    """Temporary files left for this frame by earlier, interrupted jobs."""
-    folder, base = os.path.split(final)
-    stem, ext = os.path.splitext(base)
-    return glob.glob(os.path.join(glob.escape(folder), f".{glob.escape(stem)}{PARTIAL}*{ext}"))
 
 
 def is_complete(path):
@@ -75,22 +59,12 @@ def plan(folder, name, frames, ext, force=False):
     return to_render, kept, broken
 
 
-def _fsync(path, directory=False):
-    fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def commit(tmp, final):
     """Make ``tmp`` (complete) the frame ``final``: flushed to disk first, then one rename."""
     if not is_complete(tmp):
         raise PlateLightError(f"Blender did not write a complete image for {os.path.basename(final)}; "
                               "see the render log above.")
-    _fsync(tmp)
-    os.replace(tmp, final)
-    _fsync(os.path.dirname(final) or ".", directory=True)
+    replace_file(tmp, final, durable=True)
 
 
 def check_prefix(name: str) -> None:

@@ -23,9 +23,8 @@ from ..addon import names
 from ..addon.demo import bundled_hdris
 from ..addon.errors import PlateLightError
 from ..addon.exr_io import read_exr
-from ..addon.fileio import ensure_writable_folder, write_json_atomic
+from ..addon.fileio import ensure_writable_folder, replace_file, temp_path, write_json_atomic
 from ..addon.imaging import contact_sheet, linear_to_srgb8, write_png
-from ..addon.render_files import temp_path
 from .headless import EXT_MODULE, blender_with_extension
 
 HDRI = "city"
@@ -114,7 +113,7 @@ def _render_still(bpy, scene, path, file_format="OPEN_EXR"):
     tmp = temp_path(path)   # hidden (.NAME.partial-PID.EXT): a glob of NAME_*.EXT never sees it
     scene.render.filepath = tmp
     bpy.ops.render.render(write_still=True)
-    os.replace(tmp, path)
+    replace_file(tmp, path)
 
 
 def build_real_place(bpy, hdri_path, frames=FRAMES, size=SIZE):

@@ -12,8 +12,8 @@ import sys
 from ..addon.bake.frames import parse_frames, parse_part, split_frames
 from ..addon.errors import PlateLightError
 from ..addon.farm.progress import QUIET_HELP, Progress, blender_output
-from ..addon.fileio import ensure_writable_folder
-from ..addon.render_files import check_prefix, commit, frame_path, plan, stale_temps, temp_path
+from ..addon.fileio import ensure_writable_folder, stale_temps, temp_path
+from ..addon.render_files import check_prefix, commit, frame_path, plan
 from .headless import check_blend, import_bpy, open_blend, stdout_to_stderr
 
 FORMATS = {"exr": ("OPEN_EXR", ".exr"), "png": ("PNG", ".png"),

@@ -7,7 +7,8 @@ re-bake (images reloaded) or a switch to an image sequence updates all of them a
 is stored on the group (custom property), which is how the binding finds it again.
 
 Glossiness n' in [0, 1] blends the maps with tent weights w_k = max(0, 1 - |3 n' - k|),
-k = 0..3 for diffuse, glossy1, glossy2, specular (design.md: linear between neighbours).
+k = 0..3 for diffuse, glossy1, glossy2, specular (design.md: linear between neighbours): the
+rule of addon/ibl/maps.map_weights, built here as nodes from the same constants.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import bpy
 from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
-from ..addon.ibl.maps import MAP_NAMES, map_filename
+from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
 
@@ -267,7 +268,8 @@ def _build(tree):
         return node.outputs["Color"]
 
     # Tent weights of the four maps from the (Fresnel-adjusted) glossiness n'.
-    scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", inp["Map Glossiness"], 0.0), 1.0), 3.0)
+    scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", inp["Map Glossiness"], 0.0), 1.0),
+                    float(GLOSSINESS_SCALE))
     weights = [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
                                         g.math("ABSOLUTE", g.math("SUBTRACT", scaled, float(k)))),
                       0.0) for k in range(len(MAP_NAMES))]

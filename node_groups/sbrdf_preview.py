@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import tempfile
 
 import bpy
@@ -14,6 +15,7 @@ from ..addon import names
 from ..addon.exr_io import read_exr
 from ..addon.ibl.maps import compute_maps, write_maps
 from ..addon.material.presets import preset_label, preset_names
+from .probe_maps import find_probe_group
 from .sbrdf_material import apply_sbrdf_material
 
 
@@ -76,7 +78,21 @@ def render_preset_row(out_png: str, hdri: str | None = None, presets=None,
                           bpy.types.Material: bpy.data.materials}[type(block)]
             collection.remove(block)
         bpy.data.scenes.remove(scene)
+        _remove_probe(maps_dir)
     return os.path.abspath(out_png)
+
+
+def _remove_probe(maps_dir):
+    """The preview's temporary maps: their probe group, its images and the folder."""
+    group = find_probe_group(maps_dir)
+    if group is not None:
+        images = {n.image.name for n in group.nodes if getattr(n, "image", None) is not None}
+        bpy.data.node_groups.remove(group)
+        for name in images:            # each map feeds several nodes: one name, removed once
+            image = bpy.data.images.get(name)
+            if image is not None and image.users == 0:
+                bpy.data.images.remove(image)
+    shutil.rmtree(maps_dir, ignore_errors=True)
 
 
 def _uv_sphere(mesh, segments=64, rings=32):

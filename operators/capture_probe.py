@@ -7,7 +7,8 @@ from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProp
 
 from .. import compat
 from ..addon import names
-from .common import NeedsScene
+from ..addon.wording import worded
+from .common import NeedsScene, report_error
 
 
 
@@ -36,15 +37,13 @@ def _ball(text: str):
     return Ball(*values)
 
 
-# The engine's sentences name the CLI's flags; here they name this operator's fields.
-FLAG_TO_FIELD = {"--ball CX,CY,R": "the Ball Circle field (CX,CY,R)",
-                 "--exposures T1,T2,...": "the Exposure Times field", "--grey-card": "the Grey Card field"}
-
-
-def _in_fields(text: str) -> str:
-    for flag, field in FLAG_TO_FIELD.items():
-        text = text.replace(flag, field)
-    return text
+# How this operator's fields answer what a probe error asks for (PlateLightError.worded).
+PROBE_FIELDS = {
+    "ball": "the Ball Circle field (CX,CY,R in pixels)",
+    "exposures": "the Exposure Times field (seconds, one per bracket)",
+    "focal": "focal length (the Photo Lens field)",
+    "grey_card": "the Grey Card field",
+}
 
 
 class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
@@ -120,13 +119,13 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:
-            self.report({"ERROR"}, _in_fields(str(err)))
+            report_error(self, err, PROBE_FIELDS)
             return {"CANCELLED"}
         finally:
             wm.progress_end()
         self._set_world(context, out)
         for warning in result.warnings:
-            self.report({"WARNING"}, _in_fields(warning))
+            self.report({"WARNING"}, worded(warning, PROBE_FIELDS))
         b = result.ball
         self.report({"INFO"}, f"Probe from {len(paths)} photo(s) (ball at {b.cx:.0f}, {b.cy:.0f}, "
                               f"r {b.radius:.0f} px) -> {out}")

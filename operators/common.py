@@ -1,10 +1,14 @@
-"""Small helpers shared by PlateLight's operators (bpy)."""
+"""Small helpers shared by PlateLight's operators (bpy): the plate and its colour management,
+object kinds, where data for the scene goes, the add-on preferences, error reports in Blender's
+words, the NeedsScene poll. (What the world shows: world_environment.py.)"""
 import os
-import tempfile
 
 import bpy
 
 from ..addon import names
+
+# Object types that render a surface or volume: what can be CG, a phantom, or own a probe.
+GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"})
 
 
 def find_plate_image(scene):
@@ -32,6 +36,17 @@ def set_plate_colour_management(scene):
     scene.sequencer_colorspace_settings.name = "Linear Rec.709"
 
 
+def data_folder(scene, name):
+    """Where PlateLight keeps data it makes for the scene (grain frames, a sun-less probe): the
+    folder ``name`` in the Maps Folder (next to the .blend by default). An unsaved file with a
+    relative Maps Folder keeps it beside Blender's own temporary files (bpy.app.tempdir, one per
+    Blender session, removed when Blender quits), never in a folder shared with other runs."""
+    maps_dir = scene.platelight.maps_dir
+    if maps_dir and (bpy.data.filepath or not maps_dir.startswith("//")):
+        return os.path.join(bpy.path.abspath(maps_dir), name)
+    return os.path.join(bpy.app.tempdir, "platelight", name)
+
+
 def addon_preferences(context):
     """PlateLight's add-on preferences (ui/preferences.py), or None when it is not enabled as an
     add-on (a script that registered the classes itself)."""
@@ -39,16 +54,16 @@ def addon_preferences(context):
     return addon.preferences if addon is not None else None
 
 
-def data_folder(scene, name):
-    """<maps folder>/<name> (scene.platelight.maps_dir, next to the .blend by default): where
-    PlateLight writes the files it makes for a scene; a temporary folder when the maps folder is
-    relative and the file is unsaved."""
-    maps_dir = scene.platelight.maps_dir
-    if maps_dir and (bpy.data.filepath or not maps_dir.startswith("//")):
-        folder = bpy.path.abspath(maps_dir)
-    else:
-        folder = os.path.join(tempfile.gettempdir(), "platelight")
-    return os.path.join(folder, name)
+# How operators name what an engine error asks for (PlateLightError.worded); an operator adds
+# its own fields with report_error(..., fields).
+FIELDS = {
+    "maps_folder": "in Scene > PlateLight > Maps Folder",
+}
+
+
+def report_error(operator, err, fields=None):
+    """Report a PlateLightError in Blender's words: fields and buttons, not command-line flags."""
+    operator.report({"ERROR"}, err.worded({**FIELDS, **(fields or {})}))
 
 
 class NeedsScene:

@@ -22,7 +22,7 @@ from ..addon.farm import jobs
 from ..addon.fileio import ensure_writable_folder
 from ..addon.footage import NUMBERED_FILE, sequence_frame_path
 from ..addon.names import PLATE_FRAME_OFFSET_KEY
-from .common import find_plate_image
+from .common import find_plate_image, report_error
 
 EXTERNAL = "external"
 
@@ -237,7 +237,7 @@ class PLATELIGHT_OT_export_farm_job(bpy.types.Operator):
                                   chunk=self.chunk, fmt=self.format,
                                   progress=lambda done, total: wm.progress_update(done / max(total, 1)))
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         finally:
             wm.progress_end()

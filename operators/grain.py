@@ -20,7 +20,7 @@ from bpy.props import IntProperty
 from ..addon import names
 from ..addon.footage import sequence_frame_path
 from ..node_groups.compositor_tree import differential_node, wire_grain
-from .common import NeedsScene, data_folder, find_plate_image
+from .common import NeedsScene, data_folder, find_plate_image, report_error
 
 _GRAIN_FILE = re.compile(r"^grain_(\d+)\.exr$")
 
@@ -115,7 +115,7 @@ class PLATELIGHT_OT_match_grain(NeedsScene, bpy.types.Operator):
             for path in _stale_files(folder, set(frames)):
                 os.unlink(path)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
 
         # --- the image sequence, updated in place, and its wiring

@@ -20,7 +20,7 @@ from bpy.props import StringProperty
 from ..addon import names
 from ..addon.compositing import lens
 from ..addon.errors import PlateLightError
-from .common import NeedsScene, data_folder, find_plate_image
+from .common import NeedsScene, data_folder, find_plate_image, report_error
 
 
 
@@ -207,7 +207,7 @@ class PLATELIGHT_OT_setup_lens(NeedsScene, bpy.types.Operator):
             frame = apply_lens(scene, camera, k.fx, k.fy, k.cx, k.cy, k.dist, width, height,
                                progress=wm.progress_update)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         finally:
             wm.progress_end()

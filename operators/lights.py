@@ -12,19 +12,18 @@ energy instead, no double counting) but is still seen in reflections.
 """
 import dataclasses
 import os
-import tempfile
 
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty
-
-from ..addon import names
 from mathutils import Vector
 
+from ..addon import names
+from .common import data_folder, report_error
 from .world_environment import SUNLESS_OF_KEY, probe_image, world_image
 
 
-def create_sun_lights(scene, lights, name_prefix="PlateLight"):
+def create_sun_lights(scene, lights, name_prefix=names.LIGHT_PREFIX):
     """Replace the contents of the "PlateLight Lights" collection by sun lamps for ``lights``."""
     coll = bpy.data.collections.get(names.LIGHTS_COLLECTION) or bpy.data.collections.new(names.LIGHTS_COLLECTION)
     if coll.name not in scene.collection.children:
@@ -50,11 +49,8 @@ def create_sun_lights(scene, lights, name_prefix="PlateLight"):
 
 
 def _sunless_probe_path(scene, probe_path):
-    folder = bpy.path.abspath(scene.platelight.maps_dir) if bpy.data.filepath else ""
-    if not folder:
-        folder = os.path.join(tempfile.gettempdir(), "platelight")
     stem = os.path.splitext(os.path.basename(probe_path))[0]
-    return os.path.join(folder, f"{stem}_nosun.exr")
+    return os.path.join(data_folder(scene, "lights"), f"{stem}_nosun.exr")
 
 
 class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
@@ -108,7 +104,7 @@ class PLATELIGHT_OT_lights_from_probe(bpy.types.Operator):
                 return self._sun_and_sky(scene, image, env)
             lights = [_in_world(image, light) for light in probe_lights(env, self.count, self.detect_sun)]
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         made = create_sun_lights(scene, lights)
         if self.replace_world_lighting:

@@ -9,10 +9,12 @@ from bl_operators.presets import AddPresetBase
 from bpy.props import EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
+from ..addon import names
 from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS
 from ..addon.material.presets import PRESET_SUBDIR, preset_label, preset_names, preset_params
 from ..node_groups import sbrdf_material as sm
+from .common import report_error
 
 BUILTIN_PRESETS = os.path.join(os.path.dirname(os.path.dirname(__file__)), "presets", PRESET_SUBDIR)
 _PRESET_ITEMS = [("NONE", "Keep Settings", "Keep the current (or converted) material settings")] + [
@@ -72,7 +74,7 @@ class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
             material = sm.apply_sbrdf_material(
                 obj, None if self.preset == "NONE" else self.preset, scene=context.scene)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         folder, status = sm.resolve_probe_dir(obj, context.scene)
         level = {"WARNING"} if "missing" in status else {"INFO"}
@@ -118,7 +120,7 @@ class PLATELIGHT_OT_sbrdf_preset_add(_OnActiveSBRDFMaterial, AddPresetBase, bpy.
     bl_label = "Add SBRDF Preset"
     preset_menu = "PLATELIGHT_MT_sbrdf_presets"
     preset_subdir = PRESET_SUBDIR
-    preset_defines = ["node = bpy.context.material.node_tree.nodes['PlateLight SBRDF']"]
+    preset_defines = [f"node = bpy.context.material.node_tree.nodes[{names.SBRDF_GROUP!r}]"]
     preset_values = [f"node.inputs[{spec.label!r}].default_value" for spec in PARAMETERS]
 
 
@@ -164,7 +166,7 @@ class PLATELIGHT_OT_sbrdf_export(_OnActiveSBRDFMaterial, bpy.types.Operator, Exp
         try:
             save_params(self.filepath, sm.read_params(material), material.name)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         self.report({"INFO"}, f"Wrote {self.filepath}")
         return {"FINISHED"}
@@ -185,7 +187,7 @@ class PLATELIGHT_OT_sbrdf_import(_OnActiveSBRDFMaterial, bpy.types.Operator, Imp
         try:
             params, _name = load_params(self.filepath)   # validated before anything changes
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         sm.write_params(material, params)
         self.report({"INFO"}, f"{material.name}: parameters from {os.path.basename(self.filepath)}")

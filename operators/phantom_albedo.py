@@ -17,7 +17,7 @@ from ..addon import names
 from ..addon.compositing import lens
 from ..addon.exr_io import read_exr, write_exr
 from .bake.scene_state import SceneState
-from .bake.inputs import GEOMETRY_TYPES
+from .common import GEOMETRY_TYPES
 from .common import data_folder
 
 ALBEDO_SAMPLES = 32      # the white render's samples (then OIDN): its noise becomes albedo noise

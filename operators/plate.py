@@ -13,7 +13,7 @@ from bpy.props import BoolProperty, FloatProperty, StringProperty
 from ..addon import names
 from ..addon.errors import PlateLightError
 from ..addon.footage import MOVIE_EXTENSIONS, frame_rate_pair, scan_sequence
-from .common import NeedsScene, set_plate_colour_management
+from .common import NeedsScene, report_error, set_plate_colour_management
 from .plate_colour import apply_plate_colour_space, check_colour_space, search_colour_spaces
 
 
@@ -89,7 +89,7 @@ class PLATELIGHT_OT_setup_plate(NeedsScene, bpy.types.Operator):
         try:
             image, (width, height), first, count, clip_fps, colour_reason = self._load(path)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         fps = clip_fps or self.fps or None
         fps_pair = frame_rate_pair(fps) if fps else None

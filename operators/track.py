@@ -9,7 +9,7 @@ from mathutils import Matrix
 from ..addon import names
 from ..addon.compositing.lens import has_distortion
 from ..addon.errors import PlateLightError
-from .common import NeedsScene
+from .common import NeedsScene, report_error
 from .lens import apply_lens, set_pinhole
 
 
@@ -39,6 +39,14 @@ def _clear_transform_keys(obj):
     for fc in [fc for fc in bag.fcurves if fc.data_path in ("location", "rotation_quaternion",
                                                             "rotation_euler")]:
         bag.fcurves.remove(fc)
+
+
+# How this operator's fields answer what a tracking error asks for (PlateLightError.worded).
+TRACK_FIELDS = {
+    "focal": "focal length (the Focal Length field)",
+    "calibration": "calibration file (the Calibration field)",
+    "dictionary": "Dictionary",
+}
 
 
 class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
@@ -96,7 +104,7 @@ class PLATELIGHT_OT_track_markers(NeedsScene, bpy.types.Operator):
                            smooth_sigma=self.smooth, lost=self.lost,
                            progress=lambda i: wm.progress_update(i % 100))
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err, TRACK_FIELDS)
             return {"CANCELLED"}
         finally:
             wm.progress_end()

@@ -1,19 +1,15 @@
 """Shared fixtures. Blender tests run in this same process: bpy is imported once, with a
-throw-away user profile, and the extension is enabled from this checkout (design.md)."""
+throw-away user profile, and the extension is enabled from this checkout (design.md) by the
+package's own headless starter (drivers/headless.py), as the command-line drivers do."""
 from __future__ import annotations
 
-import atexit
 import os
-import shutil
 import pathlib
-import sys
-import tempfile
 
 import pytest
 
 from support import EXT_MODULE, REPO
-
-_profile = None
+from platelight.drivers import headless
 
 
 def pytest_collection_modifyitems(config, items):
@@ -23,25 +19,8 @@ def pytest_collection_modifyitems(config, items):
 
 
 def _import_bpy_with_extension():
-    """Import bpy with a temporary user profile and enable the extension from the checkout."""
-    global _profile
-    if "bpy" not in sys.modules:
-        _profile = tempfile.mkdtemp(prefix="platelight-profile-")
-        os.environ["BLENDER_USER_RESOURCES"] = _profile
-        atexit.register(shutil.rmtree, _profile, ignore_errors=True)
-    import bpy
-
-    if EXT_MODULE not in bpy.context.preferences.addons:
-        repo_dir = pathlib.Path(_profile or tempfile.mkdtemp()) / "dev_repo"
-        repo_dir.mkdir(parents=True, exist_ok=True)
-        link = repo_dir / "platelight"
-        if not link.exists():
-            link.symlink_to(REPO, target_is_directory=True)
-        repos = bpy.context.preferences.extensions.repos
-        if "dev" not in [r.module for r in repos]:
-            repos.new(name="dev", module="dev", custom_directory=str(repo_dir), source="USER")
-        bpy.ops.preferences.addon_enable(module=EXT_MODULE)
-    return bpy
+    """bpy with the extension enabled from this checkout (benchmarks call it too)."""
+    return headless.blender_with_extension(REPO)
 
 
 @pytest.fixture(scope="session")

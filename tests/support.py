@@ -1,12 +1,14 @@
 """Constants and small helpers shared by tests and benchmarks (importable: tests/ is on sys.path).
 
 Importing this module makes ``import platelight`` resolve to *this* checkout (a symlink in a
-temporary folder put first on sys.path), so tests never pick up another copy by accident."""
+temporary folder of this process, put first on sys.path and removed at exit), so tests never
+pick up another copy by accident."""
 from __future__ import annotations
 
-import hashlib
+import atexit
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -17,24 +19,19 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "data").is_dir()), REPO.parent / "shared")
 REAL = SHARED / "data" / "real"
 GRACE = SHARED / "data" / "probes" / "grace_latlong.exr"
-EXT_MODULE = "bl_ext.dev.platelight"
 
-_SHIM = pathlib.Path(tempfile.gettempdir()) / (
-    "platelight-shim-" + hashlib.sha1(str(REPO).encode()).hexdigest()[:10])
+# This process's own folder holding a `platelight` link to the checkout, removed at exit.
+_SHIM = pathlib.Path(tempfile.mkdtemp(prefix="platelight-shim-"))
+atexit.register(shutil.rmtree, _SHIM, ignore_errors=True)
 
 
 def _install_shim() -> None:
-    _SHIM.mkdir(exist_ok=True)
-    link = _SHIM / "platelight"
-    if not (link.is_symlink() and os.readlink(link) == str(REPO)):
-        tmp = _SHIM / f".platelight-{os.getpid()}"
-        tmp.symlink_to(REPO, target_is_directory=True)
-        os.replace(tmp, link)
-    if str(_SHIM) not in sys.path:
-        sys.path.insert(0, str(_SHIM))
+    (_SHIM / "platelight").symlink_to(REPO, target_is_directory=True)
+    sys.path.insert(0, str(_SHIM))
 
 
 _install_shim()
+from platelight.drivers.headless import EXT_MODULE  # noqa: E402  (the checkout just put on the path)
 
 
 def cli_env() -> dict:

@@ -11,6 +11,7 @@ import pytest
 import support  # noqa: F401  (imports this checkout as `platelight`)
 from platelight.addon.bake import culling, frames, hashing, layout, needs
 from platelight.addon.errors import PlateLightError
+from platelight.addon.ibl.maps import MAP_GLOSSINESS, MAP_NAMES, map_weights
 
 
 # ---------------------------------------------------------------- frames
@@ -92,11 +93,25 @@ def test_maps_needed_unions_materials_and_defaults_to_all():
     assert needs.maps_needed([]) == needs.MAP_NAMES
 
 
+def test_map_weights_blend_neighbouring_anchors():
+    """The one glossiness rule: weights sum to 1, at most two neighbours are non-zero, and the
+    map anchored at n has weight 1 there."""
+    assert MAP_GLOSSINESS == {"diffuse": 0.0, "glossy1": 1 / 3, "glossy2": 2 / 3, "specular": 1.0}
+    for name, anchor in MAP_GLOSSINESS.items():
+        assert map_weights(anchor)[name] == 1.0
+    for n in np.linspace(-0.2, 1.2, 141):
+        weights = map_weights(n)
+        assert abs(sum(weights.values()) - 1.0) < 1e-12, n
+        used = [i for i, name in enumerate(MAP_NAMES) if weights[name] > 0]
+        assert 1 <= len(used) <= 2 and used[-1] - used[0] <= 1, (n, weights)
+    assert map_weights(0.5) == pytest.approx({"diffuse": 0, "glossy1": 0.5, "glossy2": 0.5, "specular": 0})
+
+
 def test_glossiness_blend_matches_anchor_neighbours():
     """Every glossiness reads exactly the maps whose anchors bracket it (design.md's blend)."""
     for n in np.linspace(0, 1, 61):
         got = needs.glossy_maps(n, fresnel=False)
-        anchors = sorted(needs.ANCHORS.items(), key=lambda kv: kv[1])
+        anchors = sorted(MAP_GLOSSINESS.items(), key=lambda kv: kv[1])
         upper = min((a for a in anchors if a[1] >= n - 1e-12), key=lambda kv: kv[1])
         lower = max((a for a in anchors if a[1] <= n + 1e-12), key=lambda kv: kv[1])
         assert got == {lower[0], upper[0]}, n

@@ -16,6 +16,7 @@ import support
 from platelight.addon.capture import ball_finder, mirror_ball
 from platelight.addon.errors import PlateLightError
 from platelight.addon.exr_io import read_exr
+from platelight.addon.wording import CLI_FLAGS
 
 pytestmark = pytest.mark.skipif(not rp.BALLS.is_dir(), reason="shared/data/real is not here")
 
@@ -49,8 +50,9 @@ def test_ladle_found_on_its_visible_outline():
 @pytest.mark.parametrize("path", sorted(rp.FROBISHER.glob("*.jpg")) + sorted(rp.CHARUCO.glob("*.jpg")),
                          ids=lambda p: p.name)
 def test_no_ball_in_real_photos_without_one(path):
-    with pytest.raises(PlateLightError, match="No mirror ball was found in the photo; give its circle with --ball"):
+    with pytest.raises(PlateLightError, match="No mirror ball was found in the photo; give its circle with") as no:
         _find(rp.read(path))
+    assert "give its circle with --ball CX,CY,R" in no.value.worded(CLI_FLAGS)      # the CLI's words
 
 
 def _gene_crop():
@@ -60,7 +62,7 @@ def _gene_crop():
 
 def test_two_balls_are_an_error_that_says_how_to_choose():
     crop = _gene_crop()
-    with pytest.raises(PlateLightError, match=r"Two mirror balls were found .* --ball CX,CY,R"):
+    with pytest.raises(PlateLightError, match=r"Two mirror balls were found .* give its circle with"):
         _find(np.hstack([crop, crop[:, ::-1]]))
 
 

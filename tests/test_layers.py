@@ -115,3 +115,23 @@ def test_no_import_circles():
         if node not in state:
             visit(node)
     assert not circles, circles
+
+
+def test_datablock_names_are_written_once():
+    """Datablocks and nodes are made and found by the names in addon/names.py, not by literals:
+    no `.new("PlateLight …")`, `.get("PlateLight …")` or `nodes["PlateLight …"]` elsewhere."""
+    found = []
+    for name, path in package_modules().items():
+        if name == f"{PACKAGE}.addon.names":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                    and node.func.attr in ("new", "get", "load") and node.args:
+                key = node.args[0]
+            elif isinstance(node, ast.Subscript):
+                key = node.slice
+            else:
+                continue
+            if isinstance(key, ast.Constant) and isinstance(key.value, str) and key.value.startswith("PlateLight "):
+                found.append(f"{path.relative_to(support.REPO)}:{node.lineno}: {key.value!r}")
+    assert not found, found

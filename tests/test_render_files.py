@@ -6,7 +6,7 @@ import os
 import numpy as np
 
 import support  # noqa: F401
-from platelight.addon import render_files
+from platelight.addon import fileio, render_files
 from platelight.addon.exr_io import write_exr
 
 
@@ -32,13 +32,13 @@ def test_truncated_exr_and_png_are_incomplete(tmp_path):
 def test_temporary_names_are_hidden_and_found_again(tmp_path):
     final = render_files.frame_path(str(tmp_path), "composite", 7, ".exr")
     assert os.path.basename(final) == "composite_0007.exr"
-    tmp = render_files.temp_path(final)
+    tmp = fileio.temp_path(final)
     assert os.path.dirname(tmp) == str(tmp_path) and tmp.endswith(".exr")
     assert os.path.basename(tmp).startswith(".composite_0007")
     open(tmp, "wb").close()
-    open(render_files.temp_path(render_files.frame_path(str(tmp_path), "composite", 8, ".exr")), "wb").close()
+    open(fileio.temp_path(render_files.frame_path(str(tmp_path), "composite", 8, ".exr")), "wb").close()
     assert glob.glob(str(tmp_path / "composite_*.exr")) == []
-    assert render_files.stale_temps(final) == [tmp]
+    assert fileio.stale_temps(final) == [tmp]
 
 
 def test_plan_keeps_complete_frames_and_redoes_broken_ones(tmp_path):

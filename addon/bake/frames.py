@@ -41,9 +41,9 @@ def split_frames(frames: list[int], part: int, parts: int) -> list[int]:
 
 
 def parse_part(text: str) -> tuple[int, int]:
-    """``"2/4"`` -> (2, 4): the --part flag of the farm commands (bake, render)."""
+    """``"2/4"`` -> (2, 4): which part of a frame range one farm machine takes (bake, render)."""
     try:
         part, parts = (int(x) for x in text.split("/"))
     except ValueError:
-        raise PlateLightError(f"--part must look like 2/4, not {text!r}.") from None
+        raise PlateLightError(f"{{part}} must look like 2/4, not {text!r}.", part="The part") from None
     return part, parts

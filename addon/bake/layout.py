@@ -101,5 +101,5 @@ def check_writable(folder: str) -> None:
         os.close(fd)
         os.unlink(tmp)
     except OSError:
-        raise PlateLightError(f"The maps folder {folder} is not writable; choose another in "
-                              "Scene > PlateLight > Maps Folder.") from None
+        raise PlateLightError(f"The maps folder {folder} is not writable; choose another {{maps_folder}}.",
+                              maps_folder="in the scene's PlateLight settings") from None

@@ -1,20 +1,15 @@
 """Which of the four maps an object's materials read, so a bake computes only those.
 
 Glossiness n in [0, 1] blends linearly between the maps anchored at 0 (diffuse), 1/3
-(glossy1), 2/3 (glossy2) and 1 (specular) (design.md). Eq 4-7's Fresnel term raises the
+(glossy1), 2/3 (glossy2) and 1 (specular) (design.md; the rule is ibl/maps.map_weights). Eq 4-7's Fresnel term raises the
 glossiness towards 1 at grazing angles (n' = n + (1 - n) f) and adds specular reflection even
 where the specular albedo is 0 (rho_s' = rho_s + (1 - rho_s) f), so a lobe with Fresnel on needs
 every map from n up to the specular one."""
 from __future__ import annotations
 
 import dataclasses
-import math
 
-from ..ibl.maps import MAP_NAMES
-
-# Glossiness at which each map is exact.
-ANCHORS = {"diffuse": 0.0, "glossy1": 1 / 3, "glossy2": 2 / 3, "specular": 1.0}
-_SPECULAR_MAPS = MAP_NAMES              # the specular lobe may blend down to the diffuse map at n = 0
+from ..ibl.maps import MAP_NAMES, map_weights
 
 
 @dataclasses.dataclass(frozen=True)
@@ -30,13 +25,10 @@ class Lobes:
 def glossy_maps(n: float | None, fresnel: bool) -> set[str]:
     """Maps a specular lobe of glossiness ``n`` reads (with Fresnel: all from n up to 1)."""
     if n is None:
-        return set(_SPECULAR_MAPS)
-    n = min(max(float(n), 0.0), 1.0)
-    position = n * 3.0                   # 0..3 along diffuse, glossy1, glossy2, specular
-    lo, hi = math.floor(position), math.ceil(position)
-    wanted = {_SPECULAR_MAPS[lo], _SPECULAR_MAPS[hi]}
-    if fresnel:
-        wanted.update(_SPECULAR_MAPS[lo:])
+        return set(MAP_NAMES)            # the specular lobe may blend down to the diffuse map at n = 0
+    wanted = {name for name, weight in map_weights(n).items() if weight > 0}
+    if fresnel:                          # n' = n + (1 - n) f reaches every glossiness up to 1
+        wanted.update(MAP_NAMES[min(MAP_NAMES.index(name) for name in wanted):])
     return wanted
 
 

@@ -40,7 +40,8 @@ MIN_RIVAL = 0.25            # and absolutely) makes the choice ambiguous
 ELLIPSE_GAIN = 0.02
 MIN_RADIUS_PX = 32          # smaller balls unwrap to too few pixels to be worth finding by themselves         # an ellipse must see this much more of the rim than a circle
 LAST_FITS: list = []
-HOW_TO_GIVE = "give its circle with --ball CX,CY,R"
+HOW_TO_GIVE = "give its circle with {ball}"        # {ball}: named by each front end (wording.py)
+BALL = {"ball": "its centre and radius in pixels"}
 
 
 @dataclasses.dataclass
@@ -381,15 +382,15 @@ def find_ball(image: np.ndarray) -> BallFit:
         if blurred:
             raise PlateLightError(
                 f"The photo is too blurred at the ball's outline (its edge is {blurred[0].rim_width:.0f} px wide) "
-                f"to find the ball; refocus on the ball, or {HOW_TO_GIVE}.")
-        raise PlateLightError(f"No mirror ball was found in the photo; {HOW_TO_GIVE}.")
+                f"to find the ball; refocus on the ball, or {HOW_TO_GIVE}.", **BALL)
+        raise PlateLightError(f"No mirror ball was found in the photo; {HOW_TO_GIVE}.", **BALL)
     best = good[0]
     rival = next((f for f in fits if f is not best and not _overlap(f, best)
                   and f.confidence >= max(RIVAL_SHARE * best.confidence, MIN_RIVAL)), None)
     if rival is not None:
         raise PlateLightError(
             f"Two mirror balls were found (at {best.cx:.0f},{best.cy:.0f} r {best.radius:.0f} and "
-            f"{rival.cx:.0f},{rival.cy:.0f} r {rival.radius:.0f} px); {HOW_TO_GIVE} of the one to use.")
+            f"{rival.cx:.0f},{rival.cy:.0f} r {rival.radius:.0f} px); {HOW_TO_GIVE} of the one to use.", **BALL)
     return best
 
 

@@ -21,7 +21,8 @@ def target_image(target, dpi: float = 300.0, margin_m: float = 0.01) -> np.ndarr
     w_m, h_m = target.extent
     w, h = int(round(w_m * px_per_m)), int(round(h_m * px_per_m))
     if min(w, h) < 16:
-        raise PlateLightError("The board is too small to print at this resolution; raise --dpi or the size.")
+        raise PlateLightError("The board is too small to print at this resolution; raise {dpi} or the size.",
+                              dpi="the resolution")
     if isinstance(target, MarkerTarget):
         marker_id = 0 if target.marker_id is None else target.marker_id
         if marker_id >= target.cv_dictionary.bytesList.shape[0]:

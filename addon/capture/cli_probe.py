@@ -8,6 +8,7 @@ import sys
 import time
 
 from ..errors import PlateLightError
+from ..wording import CLI_FLAGS, worded
 from ..fileio import ensure_writable_folder, write_json_atomic
 
 
@@ -119,7 +120,7 @@ def run(args) -> int:
     if args.report:
         write_json_atomic(args.report, result.report())
     for w in result.warnings:
-        print(f"platelight probe: warning: {w}", file=sys.stderr)
+        print(f"platelight probe: warning: {worded(w, CLI_FLAGS)}", file=sys.stderr)
     b = result.ball
     shape = f"r={b.radius:.1f}" if b.radius_y is None else f"rx={b.radius:.1f} ry={b.radius_y:.1f}"
     found = "given" if b.confidence is None else f"found, rim seen on {100 * b.confidence:.0f} % of the outline"

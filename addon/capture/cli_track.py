@@ -7,6 +7,7 @@ import sys
 import time
 
 from ..errors import PlateLightError
+from ..wording import CLI_FLAGS, worded
 from ..fileio import ensure_writable_folder, write_json_atomic
 
 
@@ -85,7 +86,7 @@ def run(args) -> int:
                    smooth_sigma=args.smooth, lost=args.lost)
     write_json_atomic(args.out, result.to_json())
     for w in result.warnings:
-        print(f"platelight track: warning: {w}", file=sys.stderr)
+        print(f"platelight track: warning: {worded(w, CLI_FLAGS)}", file=sys.stderr)
     n = len(result.frames)
     print(f"tracked {result.tracked_count}/{n} frames in {time.perf_counter() - t0:.2f} s -> {args.out}")
     return 0

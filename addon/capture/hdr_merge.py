@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import PlateLightError
 from ..imaging import srgb_to_linear
+from ..wording import Sentence
 
 SATURATED = 250      # 8-bit value from which a pixel counts as clipped
 DARK = 5             # and below which as lost in the noise floor
@@ -108,7 +109,8 @@ def read_brackets(paths, exposures=None) -> tuple[list[np.ndarray], np.ndarray]:
         missing = [os.path.basename(p) for p, t in zip(paths, times) if t is None]
         if missing:
             raise PlateLightError(
-                f"No EXIF exposure time in {', '.join(missing)}; give them with --exposures T1,T2,...")
+                f"No EXIF exposure time in {', '.join(missing)}; give them with {{exposures}}.",
+                exposures="the exposure times (seconds, one per bracket)")
     else:
         times = [float(t) for t in exposures]
         if len(times) != len(paths):
@@ -177,9 +179,10 @@ def single_photo(path: str, exposure: float | None = None) -> tuple[np.ndarray, 
     if np.all(clipped) or np.all(img <= (DARK if img.dtype == np.uint8 else DARK * 257)):
         raise PlateLightError("The photo is all white or all black; its exposure does not fit the scene.")
     n = int(clipped.sum())
-    warnings = [f"one photo gives a low-dynamic-range probe: {100.0 * n / clipped.size:.2f} % of its pixels are "
-                f"clipped at the photo's white, so the light of the sun and of lamps is only a lower bound; "
-                f"shoot exposure brackets (or give --grey-card) for their true energy"]
+    warnings = [Sentence(f"one photo gives a low-dynamic-range probe: {100.0 * n / clipped.size:.2f} % of its "
+                         f"pixels are clipped at the photo's white, so the light of the sun and of lamps is only a "
+                         f"lower bound; shoot exposure brackets (or give {{grey_card}}) for their true energy",
+                         grey_card="a grey card's box")]
     if t is None:
         warnings.append("no exposure time in the photo's EXIF: the probe's brightness is relative (value 128 -> 1)")
     return img, MergeResult(np.ascontiguousarray(rad, dtype=np.float32), clipped, resp, warnings), t

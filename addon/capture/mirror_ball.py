@@ -67,13 +67,14 @@ def find_ball(image: np.ndarray) -> Ball:
 
 def ball_warnings(ball: Ball, width: int, height: int) -> list[str]:
     """What the user should check about a found ball (unsure, touching the frame)."""
-    from .ball_finder import HOW_TO_GIVE, UNSURE_CONFIDENCE
+    from ..wording import Sentence
+    from .ball_finder import BALL, HOW_TO_GIVE, UNSURE_CONFIDENCE
 
     out = []
     if ball.confidence is not None and ball.confidence < UNSURE_CONFIDENCE:
-        out.append(f"the ball's outline was seen on only {100 * ball.confidence:.0f} % of its rim, so the circle "
-                   f"found (centre {ball.cx:.1f}, {ball.cy:.1f}, radius {ball.radius:.1f} px) is unsure: check it, "
-                   f"or {HOW_TO_GIVE}")
+        out.append(Sentence(f"the ball's outline was seen on only {100 * ball.confidence:.0f} % of its rim, so "
+                            f"the circle found (centre {ball.cx:.1f}, {ball.cy:.1f}, radius {ball.radius:.1f} px) "
+                            f"is unsure: check it, or {HOW_TO_GIVE}", **BALL))
     if cut_depth(ball, width, height) > 0:
         out.append("the ball touches the frame's edge: its outermost rim (directions almost straight behind "
                    "the ball) is filled from the edge pixels")

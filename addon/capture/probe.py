@@ -91,7 +91,7 @@ def camera_from_target(images, target, intrinsics) -> np.ndarray:
     from .poses import cv_pose_to_blender
 
     if intrinsics is None:
-        raise PlateLightError("Aligning on a marker needs the camera's focal length (--focal-px or --focal-mm).")
+        raise PlateLightError("Aligning on a marker needs the camera's {focal}.", focal="focal length")
     tracker = Tracker(target, intrinsics)
     middle = len(images) // 2
     order = sorted(range(len(images)), key=lambda i: abs(i - middle))

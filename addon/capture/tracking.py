@@ -71,7 +71,8 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
     if calibrate and not isinstance(target, CharucoTarget):
         raise PlateLightError("Calibration from the frames needs a ChArUco board, not a single marker.")
     if intrinsics is None and focal_px is None and lens_mm is None and not calibrate:
-        raise PlateLightError("Give the camera: a focal length (--focal-px or --focal-mm) or a calibration file.")
+        raise PlateLightError("Give the camera: a {focal} or a {calibration}.", focal="focal length",
+                              calibration="calibration file")
     tracker = Tracker(target)
     detections: list[tuple[int, Detection]] = []
     size = None
@@ -98,7 +99,8 @@ def track(source, target, intrinsics: Intrinsics | None = None, focal_px: float 
         other = _wrong_dictionary_hint(samples_for_hint, target.dictionary)
         if other:
             raise PlateLightError(
-                f"No {target.dictionary} marker was found, but {other} markers were: wrong --dictionary?")
+                f"No {target.dictionary} marker was found, but {other} markers were: wrong {{dictionary}}?",
+                dictionary="marker dictionary")
         if any(d.rejected > 0 for _, d in detections):
             raise PlateLightError(
                 "Marker-like squares were seen but none could be decoded in any frame: the marker "

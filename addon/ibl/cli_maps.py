@@ -7,6 +7,7 @@ import sys
 import time
 
 from ..errors import PlateLightError
+from ..wording import CLI_FLAGS, worded
 from ..hdr_io import read_probe
 from ..fileio import ensure_writable_folder, write_json_atomic
 from .equirect import from_pbrt_latlong
@@ -65,7 +66,7 @@ def run(args) -> int:
     read_s = time.perf_counter() - t0
     result = compute_maps(env, settings, which=args.maps)
     for warning in result.warnings:
-        print(f"platelight maps: warning: {warning}", file=sys.stderr)
+        print(f"platelight maps: warning: {worded(warning, CLI_FLAGS)}", file=sys.stderr)
     paths = write_maps(out, result.maps)
     write_json_atomic(os.path.join(out, "sh.json"), {
         "lmax": SH_JSON_LMAX,

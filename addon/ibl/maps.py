@@ -26,6 +26,11 @@ from . import sh
 from .equirect import check_shape, downsample_area, texel_directions, texel_solid_angles
 
 MAP_NAMES = ("diffuse", "glossy1", "glossy2", "specular")
+# The glossiness rule (design.md), written once: map k is exact at glossiness n = k / 3, and in
+# between the two neighbouring maps blend linearly (tent weights). The bake reads it to compute
+# only the maps a material samples (bake/needs.py), the shader to blend them (node_groups/probe_maps.py).
+GLOSSINESS_SCALE = len(MAP_NAMES) - 1
+MAP_GLOSSINESS = {name: k / GLOSSINESS_SCALE for k, name in enumerate(MAP_NAMES)}
 DEFAULT_HEIGHTS = {"diffuse": 16, "glossy1": 32, "glossy2": 64, "specular": 128}
 MAX_PROBE_HEIGHT = 16384
 SH_JSON_LMAX = 15
@@ -34,6 +39,13 @@ LOBE_CUTOFF = 1e-7
 # The clamped cosine's factors decay only as l^-2.5; this degree keeps the diffuse map within
 # 0.1 % of brute force on sunny probes (docs/bench/maps.md) at no measurable cost.
 DIFFUSE_LMAX_EXACT = 48
+
+
+def map_weights(glossiness: float) -> dict[str, float]:
+    """Blend weight of each map for ``glossiness`` (clamped to [0, 1]): max(0, 1 - |3 n - k|);
+    at most two are non-zero and they sum to 1."""
+    position = min(max(float(glossiness), 0.0), 1.0) * GLOSSINESS_SCALE
+    return {name: max(0.0, 1.0 - abs(position - k)) for k, name in enumerate(MAP_NAMES)}
 
 
 @dataclasses.dataclass
@@ -51,7 +63,8 @@ class MapSettings:
         if self.sampling not in ("exact", "paper"):
             raise PlateLightError(f"Unknown sampling mode {self.sampling!r}; use 'exact' or 'paper'.")
         if self.sampling == "paper" and not 1 <= self.samples <= 50_000_000:
-            raise PlateLightError(f"--samples must be between 1 and 50,000,000, not {self.samples}.")
+            raise PlateLightError(f"{{samples}} must be between 1 and 50,000,000, not {self.samples}.",
+                                  samples="The number of samples")
         for name in ("glossy1_exponent", "glossy2_exponent"):
             value = getattr(self, name)
             if not (np.isfinite(value) and 0 <= value <= 100_000):

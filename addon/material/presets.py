@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 
 from ..errors import PlateLightError
+from ..names import SBRDF_GROUP
 from .params import SBRDFParams
 
 PRESETS = {
@@ -55,7 +56,7 @@ def preset_file_text(params: SBRDFParams) -> str:
     from .params import PARAMETERS
 
     lines = ["import bpy",
-             "node = bpy.context.material.node_tree.nodes['PlateLight SBRDF']"]
+             f"node = bpy.context.material.node_tree.nodes[{SBRDF_GROUP!r}]"]
     for spec in PARAMETERS:
         value = getattr(params, spec.name)
         if spec.kind == "color":

@@ -9,7 +9,7 @@ import bpy
 from bpy.props import BoolProperty, IntProperty
 
 from ...addon.errors import PlateLightError
-from ..common import addon_preferences
+from ..common import addon_preferences, report_error
 from .job import ProbeBake, target_objects
 
 
@@ -67,7 +67,7 @@ class _ProbeOperator:
         try:
             job = self._make_job(context)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         wm.progress_begin(0, 1)
         try:
@@ -76,7 +76,7 @@ class _ProbeOperator:
                 done, total = job.progress
                 wm.progress_update(done / total)
         except PlateLightError as err:
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         finally:
             job.end()
@@ -98,7 +98,7 @@ class _ProbeOperator:
         except PlateLightError as err:
             if self._job is not None:
                 self._job.end()
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         wm = context.window_manager
         wm.progress_begin(0, 1)
@@ -117,7 +117,7 @@ class _ProbeOperator:
             more = job.step()
         except PlateLightError as err:
             self._stop(context, finish=False)
-            self.report({"ERROR"}, str(err))
+            report_error(self, err)
             return {"CANCELLED"}
         except Exception:
             self._stop(context, finish=False)      # a bug: still give the user their scene back

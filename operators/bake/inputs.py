@@ -12,7 +12,6 @@ from ...addon import names
 from ...addon.bake import culling, needs
 from ...addon.bake.hashing import content_hash
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 
 
 # --------------------------------------------------------------------------- describing inputs

@@ -21,11 +21,11 @@ import numpy as np
 from ...addon.bake import culling, layout
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
-from ...addon.exr_io import read_exr
 from ...addon.ibl import distance as distance_maps
 from ...addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, write_maps
+from ..common import GEOMETRY_TYPES
 from ..phantom_surface import apply_phantom_surfaces
-from .inputs import (GEOMETRY_TYPES, Describer, maps_for, point_inside, probe_origin,
+from .inputs import (Describer, maps_for, point_inside, probe_origin,
                      renderable, visible_in_probe, world_bounds, world_description)
 from . import distance_render
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer

@@ -87,8 +87,9 @@ def bench_blender_groundtruth(work):
     """Cycles renders (640x480, 16 spp) of the printed targets along a 12-frame path."""
     try:
         import capture_render as cr
-        os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
-        import bpy
+        from platelight.drivers.headless import import_bpy
+
+        bpy = import_bpy()
     except ImportError:
         return []
     rows = []

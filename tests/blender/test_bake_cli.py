@@ -76,3 +76,21 @@ def test_not_a_blend(tmp_path):
     assert result.returncode == 2 and "Not a .blend file" in result.stderr
     missing = support.run_cli("bake", tmp_path / "missing.blend")
     assert missing.returncode == 2 and "File not found" in missing.stderr
+
+
+def test_headless_runs_leave_no_temporary_folders(tmp_path):
+    """Each run's Blender profile and Blender's own session folder are removed when it ends, on
+    error too (they used to pile up as platelight-cli-profile-* in the temp folder)."""
+    import os
+    import subprocess
+    import sys
+
+    own_tmp = tmp_path / "tmp"
+    own_tmp.mkdir()
+    broken = tmp_path / "broken.blend"
+    broken.write_bytes(b"BLENDER-v300 not really a .blend")
+    env = dict(support.cli_env(), TMPDIR=str(own_tmp))
+    proc = subprocess.run([sys.executable, "-m", "platelight", "bake", str(broken)], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2 and "Blender cannot open" in proc.stderr, proc.stderr
+    assert os.listdir(own_tmp) == []

@@ -164,8 +164,10 @@ def test_capture_probe_failure_leaves_scene_unchanged(bpy_clean, ball_photos, tm
     # sentence names the operator's field, not the CLI's flag
     with pytest.raises(RuntimeError, match="No mirror ball was found in the photo; give its circle with the Ball Circle field"):
         bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": names[0]}])
-    with pytest.raises(RuntimeError, match="No EXIF exposure time"):
+    with pytest.raises(RuntimeError, match="No EXIF exposure time") as refused:
         bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": n} for n in names])
+    # Blender's words: the operator's field, not the command line's flag
+    assert "the Exposure Times field" in str(refused.value) and "--" not in str(refused.value)
     with pytest.raises(RuntimeError, match="ball circle needs 3"):
         bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": n} for n in names],
                                          exposures="1/500,1/125,1/30,1/8", ball="1,2")

@@ -236,6 +236,8 @@ def test_sun_moved_into_a_lamp_and_out_of_the_world(bpy_clean, studio_hdris):
     lamps = bpy.data.collections["PlateLight Lights"].objects
     assert [ob.name for ob in lamps] == ["PlateLight Sun"]
     assert env.image.filepath.endswith("sunrise_nosun.exr")
+    # an unsaved file keeps it beside Blender's own temporary files, not in a shared folder
+    assert bpy.path.abspath(env.image.filepath).startswith(bpy.app.tempdir)
     sky = read_exr(bpy.path.abspath(env.image.filepath))
     assert sky.max() < 0.05 * read_exr(studio_hdris["sunrise"]).max()
     assert scene.platelight.world_probe == str(studio_hdris["sunrise"])

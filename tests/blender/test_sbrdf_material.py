@@ -251,7 +251,11 @@ def test_render_preset_row_leaves_the_scene_alone(bpy_clean, tmp_path):
     bpy = bpy_clean
     from bl_ext.dev.platelight.node_groups.sbrdf_preview import render_preset_row
 
+    import glob
+    import tempfile
+
     ob = _sphere(bpy, "UserObject")
+    leftovers = set(glob.glob(f"{tempfile.gettempdir()}/platelight-presets-*"))
     before = (len(bpy.data.scenes), sorted(o.name for o in bpy.data.objects),
               len(bpy.data.materials), bpy.context.scene.name)
     out = render_preset_row(str(tmp_path / "row.png"), presets=["chrome", "plastic", "emissive"],
@@ -259,6 +263,11 @@ def test_render_preset_row_leaves_the_scene_alone(bpy_clean, tmp_path):
     after = (len(bpy.data.scenes), sorted(o.name for o in bpy.data.objects),
              len(bpy.data.materials), bpy.context.scene.name)
     assert before == after and ob.name in bpy.data.objects
+    # its temporary maps are gone, with the probe group and images that read them
+    assert set(glob.glob(f"{tempfile.gettempdir()}/platelight-presets-*")) <= leftovers
+    assert not any("platelight-presets-" in im.filepath for im in bpy.data.images)
+    assert not any(g.get("platelight_probe_dir", "").find("platelight-presets-") >= 0
+                   for g in bpy.data.node_groups)
     image = bpy.data.images.load(out)
     assert tuple(image.size) == (72, 24)
     px = np.array(image.pixels[:]).reshape(24, 72, 4)[..., :3]
