@@ -11,7 +11,9 @@ Writes docs/bench/composite.md/.png (480x270) or composite_<W>x<H>.md/.png.
 Run: `make bench` (480x270), `make bench-960`, `make bench-1080`, `make bench-gpu` (Cycles on
 the GPU, EEVEE on a real GPU; only where one exists). Environment: PLATELIGHT_BENCH_SIZE=WxH,
 PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
-PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load).
+PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
+PLATELIGHT_BENCH_EXTRA=layered (the layered route too), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
+subset of route keys), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/).
 """
 from __future__ import annotations
 
@@ -429,7 +431,10 @@ def main(out_dir: pathlib.Path) -> None:
         peak = float(np.percentile(np.concatenate([t.ravel() for t in truths]), 99.5))
         everything = [np.ones_like(m) for m in obj_masks]
         extra = [EXTRA_ROUTES[k] for k in os.environ.get("PLATELIGHT_BENCH_EXTRA", "").split(",") if k]
+        keys = os.environ.get("PLATELIGHT_BENCH_ROUTES")          # e.g. "sbrdf_layered": a subset
         for route, key, sample_counts in (*SHOT_ROUTES, *extra):
+            if keys and key not in keys.split(","):
+                continue
             for samples in sample_counts:
                 tag = f"{name.replace(' + ', '_')}_{key}_{samples}"
                 images, bake_s, setup_s, seconds = composite_shot(
@@ -445,7 +450,7 @@ def main(out_dir: pathlib.Path) -> None:
                                  object_px=int(obj_masks[0].sum()), shadow_px=int(shadow_masks[0].sum()),
                                  load=os.getloadavg()[0]))
                 print(rows[-1], flush=True)
-                (folder / "rows.json").write_text(json.dumps(rows, indent=1))
+                (folder / os.environ.get("PLATELIGHT_BENCH_ROWS", "rows.json")).write_text(json.dumps(rows, indent=1))
         write_report(out_dir, rows)          # after each scene: a long run reports what it has
 
 
