@@ -20,6 +20,7 @@ The plate passes unchanged: Standard view transform, no look, exposure 0, gamma 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
+from .. import compat
 from ..addon import names
 from ..node_groups.compositor_tree import build_compositor_tree
 from .common import GEOMETRY_TYPES, find_plate_image, set_plate_colour_management
@@ -184,7 +185,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                 self.report({"WARNING"}, NO_GL_SENTENCE)
                 engine = "CYCLES"
             else:
-                engine, method = "BLENDER_EEVEE", "DIFFERENTIAL"
+                engine, method = compat.EEVEE, "DIFFERENTIAL"
         else:
             engine = "CYCLES"
 
@@ -224,7 +225,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         cg_layer.samples = self.cg_samples if method == "LAYERED" else 0
         _configure_layer(cg_layer, cg_coll, phantom_coll, "visible", method != "CATCHER")
         if method == "DIFFERENTIAL":
-            local_cg = "holdout" if engine == "BLENDER_EEVEE" else "indirect"
+            local_cg = "holdout" if engine == compat.EEVEE else "indirect"
             _configure_layer(_view_layer(scene, names.LAYER_LOCAL), cg_coll, phantom_coll, local_cg, False)
             _configure_layer(_view_layer(scene, names.LAYER_WITHOUT), cg_coll, phantom_coll, "excluded", False)
         if method == "LAYERED":
@@ -237,7 +238,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         for name in (names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS):
             if name in scene.view_layers and name not in used:
                 scene.view_layers[name].use = False
-        if engine == "BLENDER_EEVEE":
+        if engine == compat.EEVEE:
             configure_eevee(scene)
         if context.window is not None:
             context.window.view_layer = cg_layer

@@ -15,13 +15,15 @@ import tempfile
 
 import bpy
 
+from .. import compat
+
 NO_GL_SENTENCE = ("EEVEE cannot render here: this Blender could not make a GL context (headless, "
                   "no GPU driver or software GL); the composite is set up for Cycles instead.")
 _CHILD = r"""
 import bpy, sys
 bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
 s = bpy.context.scene
-s.render.engine = "BLENDER_EEVEE"
+s.render.engine = sys.argv[-2]
 s.render.resolution_x = s.render.resolution_y = 8
 cam = bpy.data.objects.new("C", bpy.data.cameras.new("C"))
 s.collection.objects.link(cam)
@@ -36,8 +38,8 @@ _answer: bool | None = None
 
 def _child_command(png: str) -> list[str]:
     if bpy.app.binary_path:                       # Blender itself: run it in background mode
-        return [bpy.app.binary_path, "-b", "--factory-startup", "--python-expr", _CHILD, "--", png]
-    return [sys.executable, "-c", "import sys; exec(sys.argv[1])", _CHILD, png]   # the bpy module
+        return [bpy.app.binary_path, "-b", "--factory-startup", "--python-expr", _CHILD, "--", compat.EEVEE, png]
+    return [sys.executable, "-c", "import sys; exec(sys.argv[1])", _CHILD, compat.EEVEE, png]   # the bpy module
 
 
 def eevee_available(timeout: float = 300.0) -> bool:

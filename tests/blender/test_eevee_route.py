@@ -9,6 +9,7 @@ import textwrap
 import numpy as np
 
 import support
+from support import compat
 
 W, H = 96, 54
 
@@ -42,7 +43,7 @@ def test_eevee_composite_agrees_with_cycles(bpy_clean, tmp_path, studio_hdris):
         images[route], _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", route, samples,
                                               tmp_path / f"{route}.exr")
         if route == "sbrdf_eevee":
-            assert bpy.context.scene.render.engine == "BLENDER_EEVEE"
+            assert bpy.context.scene.render.engine == compat().EEVEE
             assert {layer.name for layer in bpy.context.scene.view_layers if layer.use} == {
                 "PlateLight CG", "PlateLight Local", "PlateLight Local Without"}
     cycles, eevee = images["sbrdf"], images["sbrdf_eevee"]
