@@ -203,7 +203,12 @@ def exit_process(code):
     if not BLENDER_4:
         return
     import atexit
+    import shutil
 
     atexit._run_exitfuncs()
+    # Blender's own session folder (blender_XXXXXX in the temp folder) is removed by the C exit
+    # handlers that are skipped here, so remove it ourselves.
+    if bpy.app.tempdir:
+        shutil.rmtree(bpy.app.tempdir, ignore_errors=True)
     sys.stderr.flush()
     os._exit(int(code or 0))
