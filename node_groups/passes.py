@@ -3,7 +3,6 @@ layer's Depth, Normal and Cryptomatte (object) passes switched on, and one File 
 single-image mode that writes the CG, Shadows, Depth, Normal and CryptoObject00-02 of each frame
 as float32 EXRs into a folder (Blender 5.2's multilayer File Output writes only its first input).
 Idempotent: re-running rewires the same node. The passes do not change the composite's pixels."""
-import glob
 import os
 import shutil
 import tempfile

@@ -1,6 +1,5 @@
 """Lens distortion engine (no Blender): OpenCV's model both ways, the overscan frame, the ST-map,
 and straight edges in real photos after undistortion."""
-import pathlib
 import subprocess
 
 import numpy as np
