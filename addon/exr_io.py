@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from .errors import PlateLightError
-from .fileio import atomic_path
+from .fileio import atomic_path, read_magic
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"
 
@@ -24,13 +24,7 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB") -> np.ndarray:
     import OpenEXR
 
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise PlateLightError(f"File not found: {path}")
-    if os.path.isdir(path):
-        raise PlateLightError(f"Expected an EXR file but got a folder: {path}")
-    with open(path, "rb") as fh:
-        magic = fh.read(4)
-    if magic != EXR_MAGIC:
+    if read_magic(path, "an EXR file") != EXR_MAGIC:
         raise PlateLightError(f"Not an OpenEXR file (wrong magic number): {path}")
     try:
         exr = OpenEXR.File(path, separate_channels=True)

@@ -27,6 +27,18 @@ def ensure_writable_folder(folder: str | os.PathLike) -> str:
     return folder
 
 
+def read_magic(path: str | os.PathLike, kind: str, size: int = 4) -> bytes:
+    """The first ``size`` bytes of an existing file; a missing path or a folder is one sentence
+    (``kind`` names what was expected, e.g. "an EXR file")."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise PlateLightError(f"File not found: {path}")
+    if os.path.isdir(path):
+        raise PlateLightError(f"Expected {kind} but got a folder: {path}")
+    with open(path, "rb") as fh:
+        return fh.read(size)
+
+
 def temp_path(final: str | os.PathLike) -> str:
     """A hidden name beside ``final`` (``.NAME.partial-PID.EXT``: the rename never crosses file
     systems, a glob of NAME_*.EXT never sees it, the extension tells writers the format), unique

@@ -41,13 +41,10 @@ def read_probe(path: str | os.PathLike) -> np.ndarray:
     OpenEXR or a Radiance .hdr file, told apart by their first bytes, not their names."""
     from .exr_io import EXR_MAGIC, read_exr
 
+    from .fileio import read_magic
+
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise PlateLightError(f"File not found: {path}")
-    if os.path.isdir(path):
-        raise PlateLightError(f"Expected an image file but got a folder: {path}")
-    with open(path, "rb") as fh:
-        magic = fh.read(4)
+    magic = read_magic(path, "an image file")
     if magic == EXR_MAGIC:
         return read_exr(path)
     if magic[:2] == RADIANCE_MAGIC:
