@@ -70,6 +70,19 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         description="Height in pixels of each object's panoramic probe render (width is twice)",
         default=64, min=8, soft_max=512, max=4096,
     )
+    probe_auto_size: BoolProperty(
+        name="Size to Screen",
+        description="Render the probe of a mirror-like object (one with a sharp specular map) at "
+        "twice its largest width on screen in pixels, from Probe Height up to Max Probe Height: a "
+        "probe smaller than the mirror blurs its reflection",
+        default=True,
+    )
+    probe_max_height: IntProperty(
+        name="Max Probe Height",
+        description="Largest height Size to Screen may give a probe (the bake's time grows with "
+        "its area)",
+        default=1024, min=8, soft_max=2048, max=4096,
+    )
     probe_samples: IntProperty(
         name="Probe Samples",
         description="Cycles samples per pixel for probe renders",

@@ -46,3 +46,12 @@ def maps_needed(materials: list[Lobes]) -> tuple[str, ...]:
     if not wanted:                       # black, non-reflective: still give it a diffuse map
         wanted.add("diffuse")
     return tuple(name for name in MAP_NAMES if name in wanted)
+
+
+def needs_sharp_specular(materials: list[Lobes]) -> bool:
+    """Does an object show the specular map head-on, so that its probe's resolution shows in its
+    reflection? True when a material's specular lobe blends the specular map at normal incidence
+    (glossiness above glossy2's) or its glossiness varies. Fresnel alone reaches the specular map
+    only at the grazing rim, where the reflection is compressed and a Probe Height probe serves."""
+    return any(lobes.specular and (lobes.glossiness is None or map_weights(lobes.glossiness)["specular"] > 0)
+               for lobes in materials)

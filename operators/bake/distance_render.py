@@ -5,7 +5,9 @@ Blender 5.2 writes no Depth pass into the probe's EXR (checked: even a multilaye
 Combined), so the distance is rendered as a colour: one 1-spp render where every surface emits
 Camera Data's View Distance (for a panoramic camera the radial distance from its centre) and the
 world emits FAR, at DISTANCE_SCALE times the probe's size (sharper silhouettes for almost nothing:
-a box's reflection IoU 0.81 at the probe's size, 0.87 at 4x)."""
+a box's reflection IoU 0.81 at the probe's size, 0.87 at 4x), but no larger than
+DISTANCE_MAX_HEIGHT unless the probe is: a probe sized to a large mirror on screen (1024 px
+high) would otherwise make a 4096 x 8192 map of 128 MiB."""
 from __future__ import annotations
 
 import os
@@ -19,6 +21,12 @@ from ...addon.exr_io import read_exr
 from ...addon.ibl import distance as distance_maps
 
 DISTANCE_SCALE = 4
+DISTANCE_MAX_HEIGHT = 1024
+
+
+def distance_height(probe_height: int) -> int:
+    """The distance map's height for a probe ``probe_height`` px high."""
+    return max(probe_height, min(DISTANCE_SCALE * probe_height, DISTANCE_MAX_HEIGHT))
 
 
 def distance_datablocks():
@@ -65,8 +73,8 @@ def render_distance(scene, view_layer, folder, clip_end):
         scene.world, view_layer.material_override = world, material
         scene.cycles.samples = 1
         render.filepath = path
-        render.resolution_x *= DISTANCE_SCALE
-        render.resolution_y *= DISTANCE_SCALE
+        height = distance_height(render.resolution_y)
+        render.resolution_x, render.resolution_y = 2 * height, height
         bpy.ops.render.render(write_still=True)
     finally:
         for owner, attr, value in reversed(saved):

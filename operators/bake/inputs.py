@@ -247,6 +247,11 @@ def maps_for(ob) -> tuple[str, ...]:
     return needs.maps_needed([lobes_of_material(m) for m in mats])
 
 
+def wants_sharp_probe(ob) -> bool:
+    """Is ``ob``'s reflection sharp enough that its probe is sized to it on screen (needs.py)?"""
+    return needs.needs_sharp_specular([lobes_of_material(slot.material) for slot in ob.material_slots])
+
+
 def point_inside(ob, depsgraph, point) -> bool:
     """Is a world-space point inside a (closed) mesh object? Bounding box first, then the
     nearest surface point's normal: it faces away from a point that is inside."""

@@ -18,7 +18,7 @@ import os
 import bpy
 import numpy as np
 
-from ...addon.bake import culling, layout
+from ...addon.bake import culling, layout, probe_size
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
 from ...addon.ibl import distance as distance_maps
@@ -26,7 +26,7 @@ from ...addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_m
 from ..common import GEOMETRY_TYPES
 from ..phantom_surface import apply_phantom_surfaces
 from .inputs import (Describer, maps_for, point_inside, probe_origin,
-                     renderable, visible_in_probe, world_bounds, world_description)
+                     renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
 from . import distance_render
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
 from .records import pack_maps, probe_hash, world_maps_hash
@@ -72,6 +72,7 @@ class ProbeBake:
         self._describer = Describer()
         self._bounds = {}
         self._bound = {}                         # object name -> (object, maps rewritten?)
+        self.heights = {}                        # object name -> probe height (px)
 
     # ---- paths
     def maps_root(self):
@@ -153,6 +154,7 @@ class ProbeBake:
         finally:
             if scene.frame_current != frame0:
                 scene.frame_set(frame0)
+        self.heights = self._probe_heights()
         self._queue = []
         for ob in self.objects:
             if self.cull and not on_screen[ob.name]:
@@ -166,6 +168,52 @@ class ProbeBake:
         # Frames outermost: one frame_set per frame, whatever the number of objects.
         self._queue.sort(key=lambda item: (self.frames.index(item[0]), item[1].name))
         self.total = len(self._queue) + (1 if self.world_only else 0)
+
+    # Frames sampled to size a static probe, which serves every frame of the scene's range.
+    SIZE_SAMPLE_FRAMES = 48
+
+    def _probe_heights(self):
+        """Object name -> probe height for the objects with a sharp reflection (probe_auto_size):
+        twice their largest width on screen over the frames the probe serves, within Probe Height
+        and Max Probe Height (addon/bake/probe_size.py). Other objects use Probe Height."""
+        settings = self.scene.platelight
+        heights = {}                     # only the sized ones; the rest render at Probe Height
+        sharp = [ob for ob in self.objects if settings.probe_auto_size and wants_sharp_probe(ob)]
+        if not sharp:
+            return heights
+        scene = self.scene
+        if self.static:
+            start, end = scene.frame_start, scene.frame_end
+            count = min(end - start + 1, self.SIZE_SAMPLE_FRAMES)
+            frames = sorted({*np.linspace(start, end, max(count, 1)).round().astype(int).tolist(),
+                             scene.frame_current})
+        else:
+            frames = self.frames
+        render = scene.render
+        width_px = render.resolution_x * render.resolution_percentage / 100.0
+        widest = {ob.name: 0.0 for ob in sharp}
+        frame0 = scene.frame_current
+        try:
+            for frame in frames:
+                if frame != scene.frame_current:
+                    scene.frame_set(int(frame))
+                cam = scene.camera
+                if cam.type != "CAMERA":
+                    continue
+                corners = [tuple(c) for c in cam.data.view_frame(scene=scene)]
+                depsgraph = self.context.evaluated_depsgraph_get()
+                for ob in sharp:
+                    points = distance_render.surface_points(ob, depsgraph)
+                    widest[ob.name] = max(widest[ob.name], probe_size.projected_extent(
+                        np.array(cam.matrix_world), corners, width_px, points,
+                        orthographic=cam.data.type == "ORTHO"))
+        finally:
+            if scene.frame_current != frame0:
+                scene.frame_set(frame0)
+        for ob in sharp:
+            heights[ob.name] = probe_size.auto_probe_height(widest[ob.name], settings.probe_height,
+                                                            max(settings.probe_height, settings.probe_max_height))
+        return heights
 
     def _camera_planes(self):
         cam = self.scene.camera
@@ -191,14 +239,19 @@ class ProbeBake:
         return float(np.linalg.norm(centre - origin)) - radius <= self.scene.platelight.probe_distance
 
     # ---- probe rendering
-    def render_probe(self, origin, hidden=(), shadow_only=(), distance=False):
+    def render_probe(self, origin, hidden=(), shadow_only=(), distance=False, height=None):
         """The panorama seen from ``origin`` (probe_render.ProbeRenderer.render)."""
-        return self._renderer.render(origin, hidden=hidden, shadow_only=shadow_only, distance=distance)
+        return self._renderer.render(origin, hidden=hidden, shadow_only=shadow_only, distance=distance,
+                                     height=height)
 
-    def map_settings(self):
-        height = self.scene.platelight.probe_height
-        # Maps are never larger than the probe they come from.
+    def map_settings(self, sized_height=None):
+        """Map sizes: never larger than the probe; a probe sized to its object on screen
+        (``sized_height``) keeps its full height in the specular map (the default 128 would blur a
+        large mirror again)."""
+        height = sized_height or self.scene.platelight.probe_height
         heights = {name: min(h, height) for name, h in DEFAULT_HEIGHTS.items()}
+        if sized_height:
+            heights["specular"] = sized_height
         return MapSettings(sampling=self.scene.platelight.sampling, heights=heights)
 
     # ---- hashing
@@ -207,7 +260,7 @@ class ProbeBake:
         seen = sorted((o.name_full, self._describer.seen_digest(o, frame)) for o in self.scene.objects
                       if o is not ob and o is not self._renderer.camera and renderable(o, self.view_layer)
                       and self._in_range(origin, o))
-        return probe_hash(self.scene, origin, maps, self._world_digest, seen)
+        return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.heights.get(ob.name))
 
     # ---- steps
     def start(self):
@@ -250,11 +303,12 @@ class ProbeBake:
         else:
             # parallax corrects the specular/glossy look-ups only: a matte object needs no distances
             wants_distance = any(name != "diffuse" for name in maps)
+            height = self.heights.get(ob.name)
             if self.scene.platelight.probe_owner_shadows:
-                env = self.render_probe(origin, shadow_only=[ob], distance=wants_distance)
+                env = self.render_probe(origin, shadow_only=[ob], distance=wants_distance, height=height)
             else:                                       # the paper: the owner is simply hidden
-                env = self.render_probe(origin, hidden=[ob], distance=wants_distance)
-            result = compute_maps(env, self.map_settings(), which=maps)
+                env = self.render_probe(origin, hidden=[ob], distance=wants_distance, height=height)
+            result = compute_maps(env, self.map_settings(height), which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
             if wants_distance:

@@ -121,8 +121,9 @@ class ProbeRenderer:
                 if ob.is_holdout:
                     state.set(ob, "is_holdout", False)
 
-    def render(self, origin, hidden=(), shadow_only=(), distance=False):
-        """Render the panorama seen from ``origin`` (world space) with ``hidden`` objects hidden
+    def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None):
+        """Render the panorama seen from ``origin`` (world space), ``height`` px high (default the
+        scene's Probe Height), with ``hidden`` objects hidden
         and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
         shades the floor under itself); returns float32 (H, 2H, 3), first row the top (the
         Environment Texture's layout). With ``distance`` the distance map is rendered too
@@ -131,6 +132,9 @@ class ProbeRenderer:
         if self.camera is None:            # set up on the first render: cache hits never need it
             self.begin()
         self.camera.location = tuple(float(x) for x in origin)
+        height = int(height or self.scene.platelight.probe_height)
+        render = self.scene.render
+        render.resolution_x, render.resolution_y = 2 * height, height   # begin() recorded the user's
         restore = []
         try:
             for ob in hidden:

@@ -12,12 +12,15 @@ from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
 from ...addon.ibl.maps import map_filename
 
 
-def probe_hash(scene, origin, maps, world_digest, seen):
+def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None):
     """The hash of one object's probe: where it sits, which maps, the world, the bake settings,
-    Cycles' bounces and ``seen`` (sorted (object, description digest) of what the probe sees)."""
+    the probe's height when it is sized to the object on screen, Cycles' bounces and ``seen``
+    (sorted (object, description digest) of what the probe sees)."""
     settings = scene.platelight
     cycles = scene.cycles
+    sized = {"sized_height": sized_height} if sized_height else {}     # older records stay valid
     return content_hash({
+        **sized,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
         "distance": DISTANCE_VERSION,
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,

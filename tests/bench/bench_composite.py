@@ -47,7 +47,6 @@ MATERIALS = {
 SETUP = {"sbrdf": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
          "sbrdf_layered": dict(method="LAYERED", cg_samples=4),
          "sbrdf_eevee": dict(engine="EEVEE")}
-PROBE_SAMPLES = 64
 # Probes are view-independent: in a shot where the camera moves and the objects stand still (the
 # paper's AR case) one bake serves every frame. Times are reported per frame of such a shot too.
 SHOT_FRAMES = 24
@@ -183,7 +182,6 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False):
     from bl_ext.dev.platelight.node_groups import ray_twin, sbrdf_material
 
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
-    scene.platelight.probe_samples = PROBE_SAMPLES
     scene.platelight.probe_owner_shadows = not paper
     sphere.platelight.enabled = True
     bpy.context.view_layer.objects.active = sphere
@@ -513,8 +511,8 @@ def write_report(out_dir, rows):
         "the floor (and box) as shadow catchers, the plate times the Shadow Catcher pass, then the CG "
         "over it, OIDN on the CG and the catcher pass (PlateLight's compositor group does exactly "
         "this). *platelight*: `setup_composite`'s defaults with the sphere converted to the "
-        f"PlateLight SBRDF and shaded from its own probe (one {PROBE_SAMPLES}-spp bake serves the "
-        "shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
+        "PlateLight SBRDF and shaded from its own probe (one bake at the scene's default probe "
+        "samples, sized to the sphere on screen, serves the shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
         "specular look-ups; shadow pass denoised. *platelight layered*: the CG in its own layer at "
         "4 spp, the shadows in a catcher layer at the listed samples. *platelight eevee*: "
         "`setup_composite(engine='EEVEE')`, Debevec's three layers rasterised (software GL here), "

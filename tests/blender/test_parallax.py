@@ -1,6 +1,7 @@
 """Parallax-corrected probe look-ups (issue 11): the distance map baked with each probe, and the
 mirror sphere beside a phantom box reflecting the box where path tracing does."""
 import importlib.util
+import json
 
 import numpy as np
 import pytest
@@ -36,7 +37,9 @@ def test_distance_map_is_the_radial_distance(bpy_clean, tmp_path, studio_hdris):
     assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
     assert bpy.ops.platelight.bake_probes(all_objects=True, force=True) == {"FINISHED"}
     dist = read_exr(tmp_path / "maps" / "Sphere" / dm.distance_filename(), "RGB")[..., 0]
-    assert dist.shape == (4 * scene.platelight.probe_height, 8 * scene.platelight.probe_height)
+    probe_height = json.loads((tmp_path / "maps" / "Sphere" / "bake.json").read_text())["probe_size"][1]
+    assert probe_height > scene.platelight.probe_height          # a mirror: sized to the screen
+    assert dist.shape == (4 * probe_height, 8 * probe_height)
     elevation = row_elevations(dist.shape[0])
     below = elevation < -np.radians(3)              # away from the horizon's mixed texels
     expected = 0.5 / np.sin(-elevation[below])
