@@ -14,6 +14,7 @@ RAY_SPLIT_NODE = "PlateLight Ray Split"     # max(Is Camera Ray, Emission For Al
 RAY_MIX_NODE = "PlateLight Ray Mix"
 LIGHT_PATH_NODE = "PlateLight Light Path"
 PROBE_DISTANCE = "PlateLight Probe Distance"    # the bake's temporary distance material/world
+UNBAKED_MAP = "PlateLight Unbaked Map"   # 1x1 black stand-in for a map not baked yet
 
 # --- compositing (node_groups/composite.py, node_groups/compositor_tree.py)
 DIFFERENTIAL_GROUP = "PlateLight Differential"   # the compositor group; also the node's name

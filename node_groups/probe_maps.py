@@ -124,7 +124,7 @@ def bind_images(tree):
             filename = map_filename(name, frame)
         previous = node.image
         if filename is None or not os.path.isfile(os.path.join(path, filename)):
-            node.image = None                      # this map was not baked: the lobe reads black
+            node.image = unbaked_map()             # this map was not baked: the lobe reads black
             _drop_dangling(previous)
             continue
         image = _load_image(os.path.join(folder, filename), kind == "sequence")
@@ -153,7 +153,7 @@ def _bind_parallax(tree, path, kind, first):
     record = read_record(path, first if kind == "sequence" else None) if kind != "missing" else {}
     origin = record.get("origin")
     distance_node = next((n for n in tree.nodes if n.get("platelight_map") == DISTANCE_NAME), None)
-    has_map = distance_node is not None and distance_node.image is not None
+    has_map = distance_node is not None and is_baked(distance_node.image)
     if origin is not None:
         for axis, value in zip("XYZ", origin):
             centre_node.inputs[axis].default_value = float(value)
@@ -171,6 +171,22 @@ def set_parallax(enabled: bool) -> int:
             bind_images(tree)
             count += 1
     return count
+
+
+def unbaked_map():
+    """The black stand-in an unbaked map's node reads: a generated image, so Cycles has nothing
+    to load (a node without an image made it log "Image file  does not exist" and "Failed to load
+    1 image files" on every render before the first bake, the probe renders included)."""
+    image = bpy.data.images.get(names.UNBAKED_MAP)
+    if image is None or image.source != "GENERATED":
+        image = bpy.data.images.new(names.UNBAKED_MAP, 1, 1, alpha=False, float_buffer=True)
+        image.generated_color = (0.0, 0.0, 0.0, 1.0)
+    return image
+
+
+def is_baked(image) -> bool:
+    """Does a probe node's image hold a baked map (not nothing, not the stand-in)?"""
+    return image is not None and image.name != names.UNBAKED_MAP
 
 
 def _drop_dangling(image):
