@@ -26,7 +26,9 @@ PHANTOM_COLLECTION = "PlateLight Phantoms"
 LAYER_CG = "PlateLight CG"                  # view layers of the differential method
 LAYER_LOCAL = "PlateLight Local"
 LAYER_WITHOUT = "PlateLight Local Without"
-LAYER_SHADOWS = "PlateLight Shadows"        # the layered catcher's shadow layer
+LAYER_SHADOWS = "PlateLight Shadows"        # the layered catcher's shadow layer (and the baked one)
+BAKED_SHADOW_MATERIAL = "PlateLight Baked Shadows"   # that layer's override in the baked method
+SHADOWS_FOLDER = "_shadows"                 # in the maps folder: the shot's baked shadow panorama
 
 # --- footage and grain (operators/plate.py, operators/grain.py)
 PLATE_IMAGE = "PlateLight Plate"

@@ -105,6 +105,23 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         if denoise_shadows:
             catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, -250)), (-300, -200))
         links.new(catcher, diff.inputs["With"])
+    elif method == "BAKED":
+        # the phantoms emit the baked ratio; elsewhere (alpha 0: no phantom) the ratio is 1
+        source = nodes.new("CompositorNodeRLayers")
+        source.name = source.label = names.LAYER_SHADOWS
+        source.scene = scene
+        source.layer = names.LAYER_SHADOWS
+        source.location = (-600, -300)
+        uncovered = compat.compositor_math(nodes, "SUBTRACT")
+        uncovered.location = (-400, -400)
+        uncovered.inputs[0].default_value = 1.0
+        links.new(source.outputs["Alpha"], uncovered.inputs[1])
+        ratio = compat.compositor_mix(nodes, blend="ADD")
+        ratio.node.location = (-200, -300)
+        ratio.factor.default_value = 1.0
+        links.new(source.outputs["Image"], ratio.a)
+        links.new(uncovered.outputs[0], ratio.b)
+        links.new(ratio.result, diff.inputs["With"])
     else:
         local = {}
         for name, socket, y in ((names.LAYER_LOCAL, "With", -300), (names.LAYER_WITHOUT, "Without", -600)):

@@ -2,8 +2,8 @@
 ``register_extra()``/``unregister_extra()`` (menu entries). Add new modules to _MODULES."""
 import importlib
 
-_MODULES = ("bake", "material", "track", "capture_probe", "composite", "plate", "lights", "grain",
-            "farm_job", "lens")
+_MODULES = ("bake", "material", "track", "capture_probe", "composite", "baked_shadows", "plate",
+            "lights", "grain", "farm_job", "lens")
 
 
 def _load():

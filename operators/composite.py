@@ -114,6 +114,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
              "SBRDF materials need few), the shadows on the catchers at Samples, denoised"),
             ("DIFFERENTIAL", "Differential", "Debevec's three renders: CG, local scene with CG and "
              "without CG (additive or ratio form)"),
+            ("BAKED", "Baked Shadows", "Two cheap renders: the CG at CG Samples, and the phantoms "
+             "showing the shot's shadows baked once by Bake Shadows (a still CG on matte phantoms, "
+             "the camera free to move)"),
         ),
         default="CATCHER",
     )
@@ -178,6 +181,11 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             self.report({"ERROR"}, "There are no CG objects to composite: every renderable object "
                         "is a phantom or hidden from render.")
             return {"CANCELLED"}
+        baked = bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL)
+        if self.method == "BAKED" and baked is None:
+            self.report({"ERROR"}, "The Baked Shadows method needs the shot's shadows: run Bake "
+                        "Shadows (platelight.bake_shadows) first.")
+            return {"CANCELLED"}
 
         method = self.method
         if self.engine == "EEVEE":
@@ -222,18 +230,25 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                 layer.use = False
         cg_layer = _view_layer(scene, names.LAYER_CG)
         cg_layer.cycles.use_pass_shadow_catcher = method == "CATCHER"
-        cg_layer.samples = self.cg_samples if method == "LAYERED" else 0
+        cg_layer.samples = self.cg_samples if method in ("LAYERED", "BAKED") else 0
         _configure_layer(cg_layer, cg_coll, phantom_coll, "visible", method != "CATCHER")
         if method == "DIFFERENTIAL":
             local_cg = "holdout" if engine == compat.EEVEE else "indirect"
             _configure_layer(_view_layer(scene, names.LAYER_LOCAL), cg_coll, phantom_coll, local_cg, False)
             _configure_layer(_view_layer(scene, names.LAYER_WITHOUT), cg_coll, phantom_coll, "excluded", False)
-        if method == "LAYERED":
+        if method in ("LAYERED", "BAKED"):
             shadows = _view_layer(scene, names.LAYER_SHADOWS)
-            shadows.cycles.use_pass_shadow_catcher = True
-            shadows.samples = 0
-            _configure_layer(shadows, cg_coll, phantom_coll, "indirect", False)
+            shadows.cycles.use_pass_shadow_catcher = method == "LAYERED"
+            if method == "LAYERED":
+                shadows.samples = 0
+                shadows.material_override = None
+                _configure_layer(shadows, cg_coll, phantom_coll, "indirect", False)
+            else:   # the phantoms emit the baked ratio: a few samples anti-alias their edges
+                shadows.samples = self.cg_samples
+                shadows.material_override = baked
+                _configure_layer(shadows, cg_coll, phantom_coll, "excluded", False)
         used = {"CATCHER": {names.LAYER_CG}, "LAYERED": {names.LAYER_CG, names.LAYER_SHADOWS},
+                "BAKED": {names.LAYER_CG, names.LAYER_SHADOWS},
                 "DIFFERENTIAL": {names.LAYER_CG, names.LAYER_LOCAL, names.LAYER_WITHOUT}}[method]
         for name in (names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS):
             if name in scene.view_layers and name not in used:

@@ -40,8 +40,10 @@ class ProbeRenderer:
     cache hits never touches the render settings), ``end()`` removes the camera, the render
     results and the temporary folder (the bake restores the recorded settings before)."""
 
-    def __init__(self, context, state, world_map_resolution):
+    def __init__(self, context, state, world_map_resolution, denoise=False, samples=None):
         self.context = context
+        self.denoise = denoise               # OpenImageDenoise on the panorama (baked shadows)
+        self.samples = samples               # None: the scene's Probe Samples
         self.scene = context.scene
         self.view_layer = context.view_layer
         self.world_map_resolution = world_map_resolution      # None: leave the world's setting
@@ -87,9 +89,9 @@ class ProbeRenderer:
         state.set(fmt, "color_mode", "RGB")
         state.set(fmt, "color_depth", "32")
         state.set(cycles, "device", "CPU")
-        state.set(cycles, "samples", scene.platelight.probe_samples)
+        state.set(cycles, "samples", self.samples or scene.platelight.probe_samples)
         state.set(cycles, "use_adaptive_sampling", False)
-        state.set(cycles, "use_denoising", False)
+        state.set(cycles, "use_denoising", self.denoise)
         state.set(cycles, "seed", 0)
         state.set(cycles, "use_animated_seed", False)
         # A box the size of one pixel: each texel is its own area, no blur from neighbours.
@@ -121,11 +123,11 @@ class ProbeRenderer:
                 if ob.is_holdout:
                     state.set(ob, "is_holdout", False)
 
-    def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None):
+    def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=()):
         """Render the panorama seen from ``origin`` (world space), ``height`` px high (default the
         scene's Probe Height), with ``hidden`` objects hidden
         and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
-        shades the floor under itself); returns float32 (H, 2H, 3), first row the top (the
+        shades the floor under itself), ``camera_hidden`` ones to camera rays only; returns float32 (H, 2H, 3), first row the top (the
         Environment Texture's layout). With ``distance`` the distance map is rendered too
         (``self.distance``: (map, warnings), distance_render.py)."""
         global render_count
@@ -141,8 +143,9 @@ class ProbeRenderer:
                 if not ob.hide_render:
                     restore.append((ob, "hide_render", False))
                     ob.hide_render = True
-            for ob in shadow_only:
-                for flag in SHADOW_ONLY_HIDDEN_RAYS:
+            for ob, flags in [(ob, SHADOW_ONLY_HIDDEN_RAYS) for ob in shadow_only] + \
+                    [(ob, ("visible_camera",)) for ob in camera_hidden]:
+                for flag in flags:
                     if getattr(ob, flag):
                         restore.append((ob, flag, True))
                         setattr(ob, flag, False)

@@ -13,7 +13,8 @@ the GPU, EEVEE on a real GPU; only where one exists). Environment: PLATELIGHT_BE
 PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
 PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
 PLATELIGHT_BENCH_EXTRA=layered (the layered route too), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
-subset of route keys), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/).
+subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
+16,64,256), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/).
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ MATERIALS = {
 # setup_composite's arguments per route (the rest are its defaults)
 SETUP = {"sbrdf": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
          "sbrdf_layered": dict(method="LAYERED", cg_samples=4),
+         "sbrdf_baked": dict(method="BAKED"),      # listed samples: the CG layer's
          "sbrdf_eevee": dict(engine="EEVEE")}
 # Probes are view-independent: in a shot where the camera moves and the objects stand still (the
 # paper's AR case) one bake serves every frame. Times are reported per frame of such a shot too.
@@ -166,12 +168,29 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, ca
         assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
     elif route.startswith("sbrdf"):
         bake_s = sbrdf_sphere(bpy, scene, sphere, out_path, paper=route == "sbrdf_paper")
+        bake_s += bake_route_shadows(bpy, route)
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
-    assert bpy.ops.platelight.setup_composite(samples=samples, denoise_shadows=True,
-                                              **SETUP[route]) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(**setup_arguments(route, samples)) == {"FINISHED"}
     setup = time.perf_counter() - t0 - bake_s
     image, render_time = render(bpy, scene, out_path)
     return image, bake_s, setup + render_time
+
+
+def bake_route_shadows(bpy, route):
+    """The baked route's one shadow bake for the shot (the operator's defaults); its seconds."""
+    if route != "sbrdf_baked":
+        return 0.0
+    t0 = time.perf_counter()
+    assert bpy.ops.platelight.bake_shadows() == {"FINISHED"}
+    return time.perf_counter() - t0
+
+
+def setup_arguments(route, samples):
+    """setup_composite's arguments for ``route`` at ``samples`` (the baked route's CG layer's)."""
+    arguments = dict(SETUP[route], samples=samples, denoise_shadows=True)
+    if route == "sbrdf_baked":
+        arguments["cg_samples"] = samples
+    return arguments
 
 
 def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False):
@@ -276,7 +295,8 @@ SHOT_SCENES = {       # in the order they run: a run stopped early reports what 
     "mirror + box": ("mirror", True), "mirror": ("mirror", False), "glossy": ("glossy", False),
     "diffuse": ("diffuse", False), "anisotropic": ("anisotropic", False),
 }
-SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight eevee", "sbrdf_eevee", (4,)),
+SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_baked", (4, 16)),
+               ("platelight eevee", "sbrdf_eevee", (4,)),
                ("platelight (paper)", "sbrdf_paper", (16,)), ("catcher", "cycles", (16, 64, 256)))
 # measured at 96x54 and left out of the default run: no better than the one-layer default there
 EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,))}
@@ -361,9 +381,9 @@ def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, ou
     bake_s = 0.0
     if route.startswith("sbrdf"):
         bake_s = sbrdf_sphere(bpy, scene, sphere, out_dir / "frame", paper=route == "sbrdf_paper")
+        bake_s += bake_route_shadows(bpy, route)
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
-    assert bpy.ops.platelight.setup_composite(samples=samples, denoise_shadows=True,
-                                              **SETUP[route]) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(**setup_arguments(route, samples)) == {"FINISHED"}
     setup_s = time.perf_counter() - t0 - bake_s
     images, seconds = [], []
     for index in range(1, len(RENDER_FRAMES) + 1):
@@ -430,9 +450,12 @@ def main(out_dir: pathlib.Path) -> None:
         everything = [np.ones_like(m) for m in obj_masks]
         extra = [EXTRA_ROUTES[k] for k in os.environ.get("PLATELIGHT_BENCH_EXTRA", "").split(",") if k]
         keys = os.environ.get("PLATELIGHT_BENCH_ROUTES")          # e.g. "sbrdf_layered": a subset
+        catcher_spp = os.environ.get("PLATELIGHT_BENCH_CATCHER_SPP")   # e.g. "16,64": a subset
         for route, key, sample_counts in (*SHOT_ROUTES, *extra):
             if keys and key not in keys.split(","):
                 continue
+            if key == "cycles" and catcher_spp:
+                sample_counts = tuple(int(v) for v in catcher_spp.split(","))
             for samples in sample_counts:
                 tag = f"{name.replace(' + ', '_')}_{key}_{samples}"
                 images, bake_s, setup_s, seconds = composite_shot(

@@ -50,6 +50,14 @@ def test_resting_sphere_keeps_its_contact_shadow(bpy_clean, tmp_path, studio_hdr
     assert abs(dark - dark_truth) < 0.05, (dark, dark_truth)        # measured 0.888 vs 0.886
     assert bench.psnr(image, truth, shadow, peak) >= 35             # measured 37.7 dB
 
+    # the shadows baked once for the shot (method BAKED): the same contact shadow, no path tracing
+    # per frame
+    image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf_baked", 16,
+                                  tmp_path / "baked.exr", camera=bench.LOW_CAMERA)
+    dark = bench.darkening(image, plate, contact)
+    assert abs(dark - dark_truth) < 0.05, (dark, dark_truth)        # measured 0.887 vs 0.886
+    assert bench.psnr(image, truth, shadow, peak) >= 35             # measured 40.3 dB
+
     # the paper's model (its emission lights the floor) fills the contact shadow in: the test
     # above can fail (measured 0.71)
     image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf_paper", 4,

@@ -1,0 +1,70 @@
+"""Baked shadows: the CG's shadow on the phantoms, computed once per shot instead of every frame.
+
+On a matte (Lambertian) phantom the shadow catcher's ratio — the light a point receives with the
+CG there over the light without it — depends on the point only, not on the camera: the albedo
+cancels and a diffuse surface sends the same radiance to every viewer. So for a shot whose CG and
+phantoms stand still while the camera moves (the paper's AR case, the benchmark's orbit), the
+ratio is rendered once, as an equirectangular panorama seen from a point above the CG (dense
+where the shadow is sharp, right under the CG; coarser far off, where it is soft), and every
+frame only looks it up along the direction to each phantom point: a nearly free emission render
+instead of a path-traced catcher pass.
+
+What it cannot do, and the operators say so: points the panorama does not see (they get no
+change), glossy phantoms (their ratio depends on the view), CG or phantoms that move.
+
+This module is the bpy-free part: the ratio and the files."""
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+
+from ..exr_io import write_exr
+
+RATIO_FILE = "shadow_ratio.exr"
+RECORD_FILE = "shadow_ratio.json"
+# Without the CG a texel this dark received no light worth a ratio (sky, a black phantom).
+DARK = 1e-6
+# The largest brightening a ratio may apply (as the compositor's Shadow Clamp).
+RATIO_CLAMP = 4.0
+
+
+def shadow_ratio(lit_with: np.ndarray, lit_without: np.ndarray) -> np.ndarray:
+    """Per texel and channel, with / without, 1 where nothing was lit, clamped to [0, RATIO_CLAMP]."""
+    lit_with = np.asarray(lit_with, dtype=np.float64)
+    lit_without = np.asarray(lit_without, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(lit_without > DARK, lit_with / np.maximum(lit_without, DARK), 1.0)
+    ratio[~np.isfinite(ratio)] = 1.0
+    return np.clip(ratio, 0.0, RATIO_CLAMP)
+
+
+def ratio_to_texture(ratio: np.ndarray) -> np.ndarray:
+    """What the override material reads: ratio − 1, so a texel that reads 0 means "no change"."""
+    return np.ascontiguousarray(np.asarray(ratio, dtype=np.float32)[..., :3] - 1.0)
+
+
+def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: int) -> str:
+    """Write the ratio texture and its record (the panorama's centre) into ``folder``."""
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, RATIO_FILE)
+    write_exr(path, texture)
+    with open(os.path.join(folder, RECORD_FILE), "w", encoding="utf-8") as f:
+        json.dump({"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples)},
+                  f, indent=1)
+    return path
+
+
+def read_record(folder: str) -> dict | None:
+    """The record of a bake in ``folder``, or None when there is none or it is unreadable."""
+    try:
+        with open(os.path.join(folder, RECORD_FILE), encoding="utf-8") as f:
+            record = json.load(f)
+        centre = [float(v) for v in record["centre"]]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if len(centre) != 3 or not all(math.isfinite(v) for v in centre):
+        return None
+    return record

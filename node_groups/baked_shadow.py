@@ -1,0 +1,55 @@
+"""The material the baked-shadow layer renders every phantom with (view-layer material override):
+it emits 1 + (baked ratio − 1) read from the shot's shadow panorama along the direction from the
+panorama's centre to the shading point, so the layer's image is the shadow ratio the catcher pass
+would have given, with no path tracing (addon/compositing/baked_shadows.py).
+
+A point the panorama saw behind something nearer (a phantom's hidden side) is told apart by the
+panorama's distance map, as the probe's parallax search does: there it emits 1 (no change)."""
+from __future__ import annotations
+
+import bpy
+
+from .. import compat
+from ..addon import names
+from ._build import Graph
+
+# A point counts as the one the panorama saw when it lies no farther than this beyond the
+# distance stored for its direction (relative, plus an absolute 1 cm for texels at the horizon).
+SEEN_TOLERANCE = 0.05
+SEEN_SLACK = 0.01
+
+
+def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.types.Material:
+    """The override material (made or rebuilt in place) reading ``ratio_path`` (ratio − 1, RGB) and
+    ``distance_path`` (radial distances), both panoramas centred at ``centre``."""
+    material = bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) or compat.new_material(names.BAKED_SHADOW_MATERIAL)
+    tree = compat.shader_tree(material)
+    tree.nodes.clear()
+    g = Graph(tree)
+    position = g.node("ShaderNodeNewGeometry").outputs["Position"]
+    origin = g.node("ShaderNodeCombineXYZ")
+    origin.name = origin.label = "Panorama Centre"
+    for axis, value in zip("XYZ", centre):
+        origin.inputs[axis].default_value = float(value)
+    offset = g.vmath("SUBTRACT", position, origin.outputs["Vector"])
+
+    def panorama(path, interpolation):
+        node = g.node("ShaderNodeTexEnvironment", interpolation=interpolation)
+        node.image = bpy.data.images.load(path, check_existing=True)
+        node.image.reload()
+        node.image.colorspace_settings.name = "Non-Color"
+        g.link(offset, node.inputs["Vector"])
+        return node.outputs["Color"]
+
+    ratio_minus_one = panorama(ratio_path, "Linear")
+    stored = g.node("ShaderNodeSeparateColor")
+    g.link(panorama(distance_path, "Closest"), stored.inputs["Color"])
+    reach = g.math("MULTIPLY_ADD", stored.outputs["Red"], 1.0 + SEEN_TOLERANCE, SEEN_SLACK)
+    seen = g.math("LESS_THAN", g.vmath("LENGTH", offset), reach)
+    change = g.vmath("SCALE", ratio_minus_one, scale=seen)
+    emit = g.node("ShaderNodeEmission")
+    g.link(g.vmath("ADD", change, (1.0, 1.0, 1.0)), emit.inputs["Color"])
+    emit.inputs["Strength"].default_value = 1.0
+    out = g.node("ShaderNodeOutputMaterial")
+    g.link(emit.outputs["Emission"], out.inputs["Surface"])
+    return material

@@ -1,0 +1,106 @@
+"""Baked shadows (issue 11): the shot's shadow ratio rendered once and looked up every frame.
+
+The reference is analytic: under a uniform sky, a black ball of radius r whose centre is h above
+an infinite floor takes away the form factor of a sphere from each floor point, r² cos β / D²
+(D the distance to the centre, β the angle from the floor's normal), so the floor's light falls
+to 1 − r² h / D³ of what it was. Nothing else is in the scene to bounce light."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import composite_scene as cs
+from support import compat
+
+R, HEIGHT = 0.5, 1.0        # the ball floats: its bottom 0.5 m above the floor
+CENTRE = np.array([0.0, 0.0, HEIGHT])
+
+
+def floating_black_ball(bpy, tmp_path, save=True):
+    scene = bpy.context.scene
+    cs.random_plate(tmp_path / "plate.exr")
+    cs.add_camera(bpy, scene)
+    floor = cs.add_plane(bpy, scene)
+    floor.platelight.phantom = True
+    ball = cs.add_sphere(bpy, scene, location=CENTRE, radius=R)
+    black = compat().new_material("Black")
+    black.node_tree.nodes.clear()
+    diffuse = black.node_tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    out = black.node_tree.nodes.new("ShaderNodeOutputMaterial")
+    black.node_tree.links.new(diffuse.outputs[0], out.inputs["Surface"])
+    ball.data.materials.append(black)
+    cs.grey_world(bpy, scene, 1.0)
+    scene.platelight.maps_dir = str(tmp_path / "maps")
+    if save:
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    return scene, floor, ball
+
+
+def analytic_ratio(ground):
+    offset = CENTRE - ground
+    distance = np.linalg.norm(offset, axis=-1)
+    return 1.0 - R ** 2 * offset[..., 2] / distance ** 3
+
+
+def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene, _floor, _ball = floating_black_ball(bpy, tmp_path)
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=4) == {"FINISHED"}
+    _image, passes = cs.render_with_passes(bpy, scene, tmp_path / "out")
+    ground, origin, rays = cs.ground_points(bpy, scene)
+    visible = np.isfinite(ground).all(axis=-1) & ~cs.sphere_hit(origin, rays, CENTRE, R, margin=0.05)
+    near = visible & (np.linalg.norm(ground[..., :2], axis=-1) < 2.0)
+    expected = analytic_ratio(ground)
+    ratio = passes["Shadows"][..., :3].mean(axis=-1)
+    assert near.sum() > 300
+    assert expected[near].min() < 0.8                                # the shadow is in view
+    error = np.abs(ratio[near] - expected[near])
+    assert np.median(error) < 0.02 and np.percentile(error, 95) < 0.05, (np.median(error), np.percentile(error, 95))
+    # far away the plate is untouched
+    far = visible & (np.linalg.norm(ground[..., :2], axis=-1) > 12.0)
+    if far.any():
+        assert np.abs(ratio[far] - 1.0).max() < 0.01
+
+
+def test_bake_restores_the_scene_and_bad_input_is_one_sentence(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene, floor, ball = floating_black_ball(bpy, tmp_path)
+    # the method before a bake: said, nothing changed
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    with pytest.raises(RuntimeError, match="run Bake Shadows"):
+        bpy.ops.platelight.setup_composite(method="BAKED")
+
+    # a CG that moves during the shot (the one-frame plate made the shot one frame long)
+    scene.frame_end = 10
+    ball.keyframe_insert("location", frame=1)
+    ball.location.x += 1.0
+    ball.keyframe_insert("location", frame=10)
+    scene.frame_set(1)
+    with pytest.raises(RuntimeError, match="moves during the shot"):
+        bpy.ops.platelight.bake_shadows(height=32, samples=2)
+    ball.animation_data_clear()
+    ball.location = tuple(CENTRE)
+    scene.frame_end = 1
+
+    # no phantoms
+    floor.platelight.phantom = False
+    with pytest.raises(RuntimeError, match="no phantoms"):
+        bpy.ops.platelight.bake_shadows(height=32, samples=2)
+    floor.platelight.phantom = True
+
+    before = (scene.camera.name, scene.render.resolution_x, scene.render.resolution_y,
+              scene.cycles.samples, scene.cycles.use_denoising, scene.render.filepath,
+              ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects))
+
+    assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
+    after = (scene.camera.name, scene.render.resolution_x, scene.render.resolution_y,
+             scene.cycles.samples, scene.cycles.use_denoising, scene.render.filepath,
+             ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects))
+    assert after == before
+    assert (tmp_path / "maps" / "_shadows" / "shadow_ratio.exr").is_file()
+    # a second run replaces the bake in place: one material, no duplicates
+    assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
+    assert len([m for m in bpy.data.materials if m.name.startswith("PlateLight Baked Shadows")]) == 1
