@@ -1,6 +1,8 @@
 """`python -m platelight bake scene.blend [--frames 10-20] [--part 2/4]`: bake a .blend's probes
 without opening Blender's window. bpy runs in this process (the project's environment has it);
-split a long range across machines with --part I/N (each writes only its own frames' files)."""
+split a long range across machines with --part I/N (each writes only its own frames' files).
+A scene composited with baked shadows (setup_composite's BAKED method) gets its shot's shadows
+baked too (by part 1 only: they serve every frame)."""
 from __future__ import annotations
 
 import importlib
@@ -80,12 +82,22 @@ def run(args):
         steps.total, steps.stream = total, log
         steps.step(f"probe {done}")
 
-    with blender_output(args.quiet) as log:    # Blender's render log; stdout keeps only the summary
-        job = bake.bake_probes(context, objects, frames or [scene.frame_current], static=frames is None,
-                               use_cache=not args.force, cull=not args.no_cull, progress=progress)
-    for warning in job.warnings:
+    shadows = importlib.import_module(f"{root}.operators.baked_shadows")
+    wants_shadows = shadows.uses_baked_shadows(scene)
+    job = baked = None
+    if objects or not wants_shadows:         # no PlateLight object: an error unless shadows are asked
+        with blender_output(args.quiet) as log:    # Blender's render log; stdout keeps only the summary
+            job = bake.bake_probes(context, objects, frames or [scene.frame_current], static=frames is None,
+                                   use_cache=not args.force, cull=not args.no_cull, progress=progress)
+    if wants_shadows and (not args.part or parse_part(args.part)[0] == 1):
+        with blender_output(args.quiet):
+            baked = shadows.bake_shadows(context)
+    for warning in (job.warnings if job else []) + (baked["warnings"] if baked else []):
         print(f"platelight bake: warning: {warning}", file=sys.stderr)
-    print(job.summary())
+    if job:
+        print(job.summary())
+    if baked:
+        print(f"Shadows baked in {baked['seconds']:.1f} s into {baked['folder']}.")
     if args.save:
         with stdout_to_stderr():
             bpy.ops.wm.save_mainfile()

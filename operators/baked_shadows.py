@@ -29,6 +29,14 @@ from .composite import classify_objects
 STATIC_SAMPLE_FRAMES = 48
 
 
+def uses_baked_shadows(scene) -> bool:
+    """Is the scene's composite the BAKED method (its shadow layer shows the baked material)?"""
+    layer = scene.view_layers.get(names.LAYER_SHADOWS)
+    override = getattr(layer, "material_override", None) if layer is not None else None
+    return bool(layer is not None and layer.use and override is not None
+                and override.name == names.BAKED_SHADOW_MATERIAL)
+
+
 def shadows_folder(scene) -> str:
     maps_dir = scene.platelight.maps_dir or DEFAULT_MAPS_DIR
     if maps_dir.startswith("//") and not bpy.data.filepath:

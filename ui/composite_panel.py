@@ -40,6 +40,9 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         row = col.row(align=True)
         row.operator("platelight.setup_composite", text="Shadow Catcher").method = "CATCHER"
         row.operator("platelight.setup_composite", text="Differential").method = "DIFFERENTIAL"
+        row = col.row(align=True)      # a still CG under a moving camera: shadows baked once
+        row.operator("platelight.bake_shadows", text="Bake Shadows", icon="LIGHT_SUN")
+        row.operator("platelight.setup_composite", text="Baked Shadows").method = "BAKED"
         col.operator("platelight.match_grain", text="Match Grain", icon="MOD_NOISE")
         layout.operator("platelight.export_farm_job", icon="NETWORK_DRIVE")
 

@@ -104,3 +104,25 @@ def test_bake_restores_the_scene_and_bad_input_is_one_sentence(bpy_clean, tmp_pa
     # a second run replaces the bake in place: one material, no duplicates
     assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
     assert len([m for m in bpy.data.materials if m.name.startswith("PlateLight Baked Shadows")]) == 1
+
+
+def test_cli_bake_bakes_the_shots_shadows_of_a_baked_composite(bpy_clean, tmp_path):
+    """A farm's bake step (`python -m platelight bake`) re-bakes the shadows of a .blend composited
+    with the BAKED method; a part other than the first leaves them to part 1."""
+    import support
+
+    bpy = bpy_clean
+    scene, _floor, ball = floating_black_ball(bpy, tmp_path)
+    ball.platelight.enabled = False                     # no probes: the shadows alone
+    assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(method="BAKED") == {"FINISHED"}
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    ratio = tmp_path / "maps" / "_shadows" / "shadow_ratio.exr"
+    ratio.unlink()
+    second = support.run_cli("bake", tmp_path / "scene.blend", "--frames", "1-1", "--part", "2/2")
+    assert second.returncode == 0, second.stderr
+    assert not ratio.exists()
+    result = support.run_cli("bake", tmp_path / "scene.blend")
+    assert result.returncode == 0, result.stderr
+    assert ratio.is_file() and "Shadows baked" in result.stdout
