@@ -536,14 +536,17 @@ def write_report(out_dir, rows):
         "this). *platelight*: `setup_composite`'s defaults with the sphere converted to the "
         "PlateLight SBRDF and shaded from its own probe (one bake at the scene's default probe "
         "samples, sized to the sphere on screen, serves the shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
-        "specular look-ups; shadow pass denoised. *platelight layered*: the CG in its own layer at "
+        "specular look-ups; shadow pass denoised. *platelight baked*: the same sphere, the shot's "
+        "shadows baked once (`bake_shadows()` defaults: two 512-px panoramas at 16 spp, denoised; "
+        "its time is in *bake*), `setup_composite(method='BAKED')` with the listed samples for the "
+        "CG layer; no path tracing per frame. *platelight layered*: the CG in its own layer at "
         "4 spp, the shadows in a catcher layer at the listed samples. *platelight eevee*: "
         "`setup_composite(engine='EEVEE')`, Debevec's three layers rasterised (software GL here), "
         "listed samples = TAA samples. *platelight (paper)*: the paper's model as written (cosine "
         "falloff, diffuse and specular added in full, owner hidden in its probe, the emission "
         "lighting the phantoms), still with parallax.",
         "",
-        "Times (s): *bake* the probe bake, *setup* plate + composite set-up, *first* the first "
+        "Times (s): *bake* the probe bake (and the baked route's shadow bake), *setup* plate + composite set-up, *first* the first "
         "frame's render (scene sync, shader compilation), *warm* a later frame (persistent data), "
         f"*per frame* = (bake + setup + first + {SHOT_FRAMES - 1} × warm) / {SHOT_FRAMES}. "
         "Produced by `tests/bench/bench_composite.py` (`make bench`; "
@@ -586,7 +589,8 @@ def write_report(out_dir, rows):
                          + " | " + " | ".join(fmt(sp) for _, sp in cells) + " |")
     (out_dir / f"{stem}.md").write_text("\n".join(lines) + "\n")
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
-    colours = dict(zip(routes, ("tab:red", "tab:orange", "tab:green", "tab:purple", "tab:blue")))
+    colours = dict(zip(routes, ("tab:red", "tab:orange", "tab:green", "tab:purple", "tab:blue",
+                                "tab:brown", "tab:gray", "tab:olive")))
     for ax, key, title in ((axes[0], "psnr_object", "object"), (axes[1], "psnr_shadow", "shadow"),
                            (axes[2], "psnr_all", "frame")):
         for scene_name, marker in zip(scenes, "osD^v"):

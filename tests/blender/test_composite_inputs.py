@@ -327,9 +327,9 @@ def test_compositing_panel_draws_existing_operators(bpy_clean):
     panel_module.PLATELIGHT_PT_compositing.draw(type("P", (), {"layout": recorder})(), bpy.context)
     panel_module.PLATELIGHT_PT_clip_tracking.draw(type("P", (), {"layout": recorder})(), bpy.context)
     ops = [(args[0], vars(props)) for name, args, _, props in recorder.calls if name == "operator"]
-    assert len(ops) == 12
+    assert len(ops) == 14
     assert {"platelight.track_markers", "platelight.capture_probe", "platelight.setup_lens",
-            "platelight.export_farm_job"} <= {idname for idname, _ in ops}
+            "platelight.export_farm_job", "platelight.bake_shadows"} <= {idname for idname, _ in ops}
     for idname, settings in ops:
         op = getattr(bpy.ops, idname.split(".")[0])
         rna = getattr(op, idname.split(".")[1]).get_rna_type()

@@ -212,6 +212,7 @@ def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     render.image_settings.color_mode = "RGBA"
     render.image_settings.color_depth = "32"
     scene.platelight.probe_height = 32             # 64 x 32 probe renders: tiny, 2 shared cores
+    scene.platelight.probe_auto_size = False       # every map at Probe Height (test_probe_size.py sizes)
     scene.platelight.probe_samples = 4
     # these tests check the render against the paper's look-ups from the probe centre (the numpy
     # reference above); parallax-corrected look-ups have their own test (test_parallax.py)
@@ -373,7 +374,7 @@ def test_rerun_does_not_duplicate_and_bad_input_changes_nothing(bpy_clean, tmp_p
     assert data_counts(bpy) == steady
     assert bpy.ops.platelight.bake_probes(all_objects=True, force=True) == {"FINISHED"}
     assert data_counts(bpy) == steady
-    paths = [bpy.path.abspath(im.filepath) for im in bpy.data.images]
+    paths = [bpy.path.abspath(im.filepath) for im in bpy.data.images if im.source != "GENERATED"]
     assert len(paths) == len(set(paths)) and all(os.path.isfile(p) for p in paths)
     assert sum(1 for g in bpy.data.node_groups if g.name.startswith("PlateLight Probe")) == 1
     assert sum(1 for g in bpy.data.node_groups if g.name == "PlateLight SBRDF") == 1
