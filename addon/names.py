@@ -29,6 +29,7 @@ LAYER_WITHOUT = "PlateLight Local Without"
 LAYER_SHADOWS = "PlateLight Shadows"        # the layered catcher's shadow layer (and the baked one)
 BAKED_SHADOW_MATERIAL = "PlateLight Baked Shadows"   # that layer's override in the baked method
 SHADOWS_FOLDER = "_shadows"                 # in the maps folder: the shot's baked shadow panorama
+SHADOW_BAKE_LAYER = "PlateLight Shadow Bake"   # the shadow bake's temporary view layer
 
 # --- footage and grain (operators/plate.py, operators/grain.py)
 PLATE_IMAGE = "PlateLight Plate"

@@ -91,13 +91,14 @@ def run(args):
                                    use_cache=not args.force, cull=not args.no_cull, progress=progress)
     if wants_shadows and (not args.part or parse_part(args.part)[0] == 1):
         with blender_output(args.quiet):
-            baked = shadows.bake_shadows(context)
+            baked = shadows.bake_shadows(context, use_cache=not args.force)
     for warning in (job.warnings if job else []) + (baked["warnings"] if baked else []):
         print(f"platelight bake: warning: {warning}", file=sys.stderr)
     if job:
         print(job.summary())
     if baked:
-        print(f"Shadows baked in {baked['seconds']:.1f} s into {baked['folder']}.")
+        print(f"The baked shadows in {baked['folder']} are up to date." if baked["reused"] else
+              f"Shadows baked in {baked['seconds']:.1f} s into {baked['folder']}.")
     if args.save:
         with stdout_to_stderr():
             bpy.ops.wm.save_mainfile()

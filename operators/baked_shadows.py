@@ -13,18 +13,22 @@ import time
 
 import bpy
 import numpy as np
-from bpy.props import IntProperty
+from bpy.props import BoolProperty, IntProperty
 
+from .. import compat
 from ..addon import names
+from ..addon.bake.hashing import content_hash
 from ..addon.bake.layout import DEFAULT_MAPS_DIR
 from ..addon.compositing import baked_shadows as engine
 from ..addon.errors import PlateLightError
 from ..addon.ibl import distance as distance_maps
 from ..node_groups.baked_shadow import baked_shadow_material
-from .bake.inputs import point_inside, world_bounds
+from .bake.inputs import Describer, point_inside, world_description
 from .bake.probe_render import ProbeRenderer
 from .bake.scene_state import SceneState
+from .common import GEOMETRY_TYPES
 from .composite import classify_objects
+from .phantom_surface import apply_phantom_surfaces
 
 STATIC_SAMPLE_FRAMES = 48
 
@@ -71,14 +75,67 @@ def panorama_centre(cg):
     return np.array([(low[0] + high[0]) / 2, (low[1] + high[1]) / 2, high[2] + radius])
 
 
+def _matte_grey():
+    """A plain 50 % grey diffuse material for the phantoms during the bake (removed after)."""
+    material = compat.new_material(names.BAKED_SHADOW_MATERIAL + " Grey")
+    tree = compat.shader_tree(material)
+    tree.nodes.clear()
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
+    return material
+
+
 def _vec(c):
     from mathutils import Vector
 
     return Vector(c)
 
 
-def bake_shadows(context, height: int = 512, samples: int = 16) -> dict:
-    """Bake the shot's shadow panorama and (re)build the override material; returns a summary."""
+def shadows_hash(scene, height, samples) -> str:
+    """The content hash of what the shadow panorama depends on: the world, every renderable
+    object (place, shape, materials, visibility), the bake's settings and Cycles' bounces. A
+    phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
+    the ratio, and the plate-albedo material is remade at every composite set-up."""
+    describer = Describer()
+    frame = scene.frame_current
+
+    def digest(ob):
+        if not ob.platelight.phantom:
+            return describer.seen_digest(ob, frame)
+        described = describer.seen_object(ob, frame)
+        described.pop("materials")
+        return content_hash(described)
+
+    seen = sorted((ob.name_full, digest(ob)) for ob in scene.objects
+                  if not ob.hide_render and (ob.type in GEOMETRY_TYPES or ob.type == "LIGHT"))
+    cycles = scene.cycles
+    return content_hash({"world": content_hash(world_description(scene)), "seen": seen,
+                         "settings": [int(height), int(samples)],
+                         "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
+                                    cycles.transmission_bounces]})
+
+
+def baked_is_current(scene) -> bool | None:
+    """Do the baked shadows on disk still fit the scene? None when there is no readable bake."""
+    try:
+        record = engine.read_record(shadows_folder(scene))
+    except PlateLightError:
+        return None
+    if record is None:
+        return None
+    return record.get("hash") == shadows_hash(scene, record.get("height", 0), record.get("samples", 0))
+
+
+DEFAULT_HEIGHT, DEFAULT_SAMPLES = 512, 16
+
+
+def bake_shadows(context, height: int | None = None, samples: int | None = None,
+                 use_cache: bool = True) -> dict:
+    """Bake the shot's shadow panorama and (re)build the override material; returns a summary
+    (``reused``: the bake on disk was current and nothing was rendered). ``height``/``samples``
+    None: those of the bake on disk (a farm's re-bake keeps the artist's), else the defaults."""
     scene = context.scene
     if scene.world is None:
         raise PlateLightError("The scene has no world; add one (its environment lights the phantoms) "
@@ -91,6 +148,17 @@ def bake_shadows(context, height: int = 512, samples: int = 16) -> dict:
                               "real surfaces as Phantom.")
     folder = shadows_folder(scene)
     check_still(scene, cg + phantoms)
+    apply_phantom_surfaces(scene, phantoms)     # as the composite will show them (hash and render)
+    record = engine.read_record(folder)
+    height = int(height or (record or {}).get("height") or DEFAULT_HEIGHT)
+    samples = int(samples or (record or {}).get("samples") or DEFAULT_SAMPLES)
+    digest = shadows_hash(scene, height, samples)
+    if use_cache and record is not None and record.get("hash") == digest and \
+            bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) is not None and \
+            os.path.isfile(os.path.join(folder, engine.RATIO_FILE)):
+        return {"seconds": 0.0, "folder": folder, "centre": record["centre"], "warnings": [], "reused": True}
+    if record is not None:                      # a bake stopped halfway is never taken as current
+        os.remove(os.path.join(folder, engine.RECORD_FILE))
     centre = panorama_centre(cg)
     depsgraph = context.evaluated_depsgraph_get()
     for ob in phantoms:
@@ -99,8 +167,21 @@ def bake_shadows(context, height: int = 512, samples: int = 16) -> dict:
                                   "cannot be seen from there; use the Shadow Catcher method.")
     t0 = time.perf_counter()
     state = SceneState()
-    renderer = ProbeRenderer(context, state, None, denoise=True, samples=samples)
+    # A view layer of its own: the composite's layers hold things out, exclude the CG or override
+    # every material (a farm's bake opens the file on whichever of them was active)
+    layer = scene.view_layers.new(names.SHADOW_BAKE_LAYER)
+    renderer = ProbeRenderer(context, state, None, denoise=True, samples=samples, view_layer=layer)
+    grey = _matte_grey()
     try:
+        for other in scene.view_layers:
+            if other != layer and other.use:
+                state.set(other, "use", False)
+        # Phantoms are rendered plain grey: a matte albedo cancels in the ratio, and a textured
+        # one (the plate's albedo) made the two denoised renders differ by up to 5 % far from any
+        # shadow (the denoiser sees the whole panorama)
+        for ob in phantoms:
+            for slot in ob.material_slots:
+                state.set(slot, "material", grey)
         # with: the CG shadows and lights the phantoms but is not seen; without: gone
         lit_with = renderer.render(centre, camera_hidden=cg, height=height, distance=True)
         distance, warnings = renderer.distance
@@ -108,12 +189,14 @@ def bake_shadows(context, height: int = 512, samples: int = 16) -> dict:
     finally:
         errors = state.restore()
         renderer.end()
+        bpy.data.materials.remove(grey)
+        scene.view_layers.remove(layer)
     ratio = engine.shadow_ratio(lit_with, lit_without)
-    ratio_path = engine.write_baked(folder, engine.ratio_to_texture(ratio), centre, height, samples)
     distance_path = distance_maps.write_distance(folder, distance)
+    ratio_path = engine.write_baked(folder, engine.ratio_to_texture(ratio), centre, height, samples, digest)
     baked_shadow_material(ratio_path, distance_path, centre)
     return {"seconds": time.perf_counter() - t0, "folder": folder, "centre": centre,
-            "warnings": list(warnings) + list(errors or [])}
+            "warnings": list(warnings) + list(errors or []), "reused": False}
 
 
 class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
@@ -124,10 +207,12 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
     bl_label = "Bake Shadows"
     bl_options = {"REGISTER", "UNDO"}
 
+    force: BoolProperty(name="Force", description="Bake even when the shadows on disk are up to date",
+                        default=False)
     height: IntProperty(name="Resolution", description="Height of the shadow panorama in pixels "
-                        "(width twice)", default=512, min=16, max=8192)
+                        "(width twice)", default=DEFAULT_HEIGHT, min=16, max=8192)
     samples: IntProperty(name="Samples", description="Cycles samples of each of the two renders "
-                         "(denoised)", default=16, min=1, max=65536)
+                         "(denoised)", default=DEFAULT_SAMPLES, min=1, max=65536)
 
     @classmethod
     def poll(cls, context):
@@ -138,13 +223,16 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            summary = bake_shadows(context, self.height, self.samples)
+            summary = bake_shadows(context, self.height, self.samples, use_cache=not self.force)
         except PlateLightError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         for warning in summary["warnings"]:
             self.report({"WARNING"}, str(warning))
-        self.report({"INFO"}, f"Shadows baked in {summary['seconds']:.1f} s into {summary['folder']}.")
+        if summary["reused"]:
+            self.report({"INFO"}, f"The baked shadows in {summary['folder']} are up to date.")
+        else:
+            self.report({"INFO"}, f"Shadows baked in {summary['seconds']:.1f} s into {summary['folder']}.")
         return {"FINISHED"}
 
 

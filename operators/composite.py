@@ -260,6 +260,12 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         build_compositor_tree(scene, plate_image, method, self.ratio_form, self.shadow_clamp,
                               self.denoise_shadows)
 
+        if method == "BAKED":
+            from .baked_shadows import baked_is_current     # (it imports this module)
+
+            if not baked_is_current(scene):
+                self.report({"WARNING"}, "The baked shadows do not match the scene any more (an "
+                            "object, the world or a setting changed): run Bake Shadows again.")
         if not phantoms:
             self.report({"WARNING"}, f"Composite set up for {len(cg)} CG object(s), but there are no "
                         "phantoms: the CG casts no shadows and nothing real hides it (mark stand-ins "

@@ -46,14 +46,15 @@ def ratio_to_texture(ratio: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(ratio, dtype=np.float32)[..., :3] - 1.0)
 
 
-def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: int) -> str:
-    """Write the ratio texture and its record (the panorama's centre) into ``folder``."""
+def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: int, digest: str = "") -> str:
+    """Write the ratio texture and its record (the panorama's centre, the inputs' hash) into
+    ``folder``; the record last, so a bake stopped halfway is never taken as current."""
     os.makedirs(folder, exist_ok=True)
     path = os.path.join(folder, RATIO_FILE)
     write_exr(path, texture)
     with open(os.path.join(folder, RECORD_FILE), "w", encoding="utf-8") as f:
-        json.dump({"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples)},
-                  f, indent=1)
+        json.dump({"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples),
+                   "hash": digest}, f, indent=1)
     return path
 
 

@@ -40,12 +40,12 @@ class ProbeRenderer:
     cache hits never touches the render settings), ``end()`` removes the camera, the render
     results and the temporary folder (the bake restores the recorded settings before)."""
 
-    def __init__(self, context, state, world_map_resolution, denoise=False, samples=None):
+    def __init__(self, context, state, world_map_resolution, denoise=False, samples=None, view_layer=None):
         self.context = context
         self.denoise = denoise               # OpenImageDenoise on the panorama (baked shadows)
         self.samples = samples               # None: the scene's Probe Samples
         self.scene = context.scene
-        self.view_layer = context.view_layer
+        self.view_layer = view_layer or context.view_layer     # the layer rendered
         self.world_map_resolution = world_map_resolution      # None: leave the world's setting
         self._state = state
         self.camera = None
@@ -150,7 +150,7 @@ class ProbeRenderer:
                         restore.append((ob, flag, True))
                         setattr(ob, flag, False)
             try:
-                bpy.ops.render.render(write_still=True)
+                bpy.ops.render.render(write_still=True, layer=self.view_layer.name)
             except RuntimeError as exc:
                 reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
                 raise PlateLightError(f"Cycles could not render the probe at {tuple(round(float(x), 3) for x in origin)}: "

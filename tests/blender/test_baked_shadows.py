@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 import composite_scene as cs
+from bake_scenes import probe_renders
+from platelight.addon.exr_io import read_exr
 from support import compat
 
 R, HEIGHT = 0.5, 1.0        # the ball floats: its bottom 0.5 m above the floor
@@ -43,12 +45,18 @@ def analytic_ratio(ground):
     return 1.0 - R ** 2 * offset[..., 2] / distance ** 3
 
 
-def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, tmp_path):
+def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, tmp_path, capfd):
     bpy = bpy_clean
-    scene, _floor, _ball = floating_black_ball(bpy, tmp_path)
-    assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    scene, _floor, ball = floating_black_ball(bpy, tmp_path)
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    capfd.readouterr()
     assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=4) == {"FINISHED"}
+    assert "do not match" not in capfd.readouterr().out
+    # nothing changed: a second bake renders nothing
+    renders = probe_renders()
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    assert probe_renders() == renders and "up to date" in capfd.readouterr().out
     _image, passes = cs.render_with_passes(bpy, scene, tmp_path / "out")
     ground, origin, rays = cs.ground_points(bpy, scene)
     visible = np.isfinite(ground).all(axis=-1) & ~cs.sphere_hit(origin, rays, CENTRE, R, margin=0.05)
@@ -63,6 +71,13 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
     far = visible & (np.linalg.norm(ground[..., :2], axis=-1) > 12.0)
     if far.any():
         assert np.abs(ratio[far] - 1.0).max() < 0.01
+
+    # the ball moved: the bake is stale, and the composite says so
+    ball.location.z += 0.2
+    assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=4) == {"FINISHED"}
+    assert "run Bake Shadows again" in capfd.readouterr().out
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    assert probe_renders() > renders
 
 
 def test_bake_restores_the_scene_and_bad_input_is_one_sentence(bpy_clean, tmp_path):
@@ -114,8 +129,8 @@ def test_cli_bake_bakes_the_shots_shadows_of_a_baked_composite(bpy_clean, tmp_pa
     bpy = bpy_clean
     scene, _floor, ball = floating_black_ball(bpy, tmp_path)
     ball.platelight.enabled = False                     # no probes: the shadows alone
-    assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(method="BAKED") == {"FINISHED"}
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
     ratio = tmp_path / "maps" / "_shadows" / "shadow_ratio.exr"
@@ -126,3 +141,8 @@ def test_cli_bake_bakes_the_shots_shadows_of_a_baked_composite(bpy_clean, tmp_pa
     result = support.run_cli("bake", tmp_path / "scene.blend")
     assert result.returncode == 0, result.stderr
     assert ratio.is_file() and "Shadows baked" in result.stdout
+    # baked from the saved file's view layers: the ball's shadow is in it
+    assert read_exr(ratio, "RGB").min() < -0.2
+    again = support.run_cli("bake", tmp_path / "scene.blend")
+    assert again.returncode == 0, again.stderr
+    assert "up to date" in again.stdout
