@@ -7,6 +7,7 @@ import json
 import math
 import pathlib
 
+import numpy as np
 import pytest
 
 import support  # noqa: F401  (makes `platelight` this checkout)
@@ -70,15 +71,36 @@ def test_json_missing_file_and_partial_parameters(tmp_path):
     assert json_io.load_params(tmp_path / "p2.json")[0].paper_falloff == 0.0
 
 
-def test_roughness_glossiness_knots():
-    # The maps' Phong exponents (s = 64 for glossy2, 8 for glossy1) through alpha = r^2,
-    # s = 2 / alpha^2 - 2.
-    for s, n in ((64, 2 / 3), (8, 1 / 3)):
-        r = (2 / (s + 2)) ** 0.25
-        assert principled.roughness_to_glossiness(r) == pytest.approx(n)
-        assert principled.glossiness_to_roughness(n) == pytest.approx(r)
+def _median_angle(weights, theta):
+    cdf = np.cumsum(weights * np.sin(theta))
+    return theta[np.searchsorted(cdf / cdf[-1], 0.5)]
+
+
+def _ggx_reflection_median(alpha, theta):
+    """Half-energy angle of the directions a GGX surface reflects a head-on view into: microfacet
+    normals at theta_h with density D(h) cos(theta_h), reflected to 2 theta_h."""
+    a2 = alpha ** 2
+    d = a2 / (np.pi * (np.cos(theta) ** 2 * (a2 - 1) + 1) ** 2)
+    return 2 * _median_angle(d * np.cos(theta), theta)
+
+
+def test_roughness_knots_match_the_ggx_lobes():
+    """Each map's roughness is where GGX's reflection lobe is as wide (half its energy) as the map's
+    Phong lobe (s = 64 glossy2, 8 glossy1, 1 diffuse): bisection on a dense angle grid."""
+    theta = np.linspace(0.0, np.pi / 2, 200001)[:-1]
+    for s, n in ((64, 2 / 3), (8, 1 / 3), (1, 0.0)):
+        target = _median_angle(np.cos(theta) ** s, theta)
+        lo, hi = 1e-3, 0.99
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if _ggx_reflection_median(mid, theta) < target else (lo, mid)
+        roughness = np.sqrt((lo + hi) / 2)
+        assert principled.glossiness_to_roughness(n) == pytest.approx(roughness, abs=0.002)
+        assert principled.roughness_to_glossiness(roughness) == pytest.approx(n, abs=0.01)
     assert principled.roughness_to_glossiness(0.0) == 1.0
     assert principled.roughness_to_glossiness(1.0) == 0.0
+    # a roughness-0.3 metal reads no mirror map (its sun is soft)
+    assert principled.roughness_to_glossiness(0.3) < 2 / 3
 
 
 @pytest.mark.parametrize("values", [

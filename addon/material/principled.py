@@ -2,9 +2,14 @@
 
 Mapping (documented in docs/sbrdf.md):
 - rho_d = base (1 - metallic);  rho_s = lerp(F0, base, metallic), F0 = ((ior-1)/(ior+1))^2 * 2 level
-- glossiness from roughness through the Phong exponent of each map: a GGX alpha = r^2 lobe is
-  closest to Phong s = 2/alpha^2 - 2, so the maps sit at r = (2/(s+2))^(1/4): specular r = 0,
-  glossy2 (s = 64) r = 0.418, glossy1 (s = 8) r = 0.669, diffuse (s = 1) r = 0.904; linear between.
+- glossiness from roughness through each map's lobe: the roughness r whose GGX (alpha = r^2)
+  reflection lobe at normal incidence holds half its energy within the same angle as the map's
+  Phong lobe around R, (s+1)/(2 pi) cos^s: specular r = 0, glossy2 (s = 64, 8.35 deg) r = 0.270,
+  glossy1 (s = 8, 22.2 deg) r = 0.443, diffuse (s = 1, 45 deg) r = 0.644; linear between.
+  (The first mapping, s = 2/alpha^2 - 2, is the Blinn exponent of a lobe around the half vector,
+  whose reflection lobe is twice as wide: it put the maps at r = 0.418, 0.669, 0.904 and gave a
+  roughness-0.3 copper 28 % of the mirror map, a sharp sun where the truth has a soft one:
+  26.5 dB object PSNR against the catcher's 40.7 at 960x540.)
 - Fresnel falloff phi = 1/6: Schlick's (1 - cos)^5 is f with 1/phi - 1 = 5.
 - alpha = principled alpha * (1 - transmission (1 - metallic)); IOR as is; emission as is.
 - anisotropy a: Cy = -(1 - 0.9 a) (Cx = -1), rotation 2 pi * anisotropic rotation.
@@ -19,7 +24,8 @@ import numpy as np
 from .params import SBRDFParams
 
 SCHLICK_PHI = 1.0 / 6.0
-_ROUGHNESS_KNOTS = np.array([0.0, (2 / 66) ** 0.25, (2 / 10) ** 0.25, (2 / 3) ** 0.25])
+# Fitted by tests/test_material.py::test_roughness_knots_match_the_ggx_lobes (brute force).
+_ROUGHNESS_KNOTS = np.array([0.0, 0.2702, 0.4429, 0.6436])
 _GLOSS_KNOTS = np.array([1.0, 2 / 3, 1 / 3, 0.0])
 METAL_THRESHOLD = 0.2
 
