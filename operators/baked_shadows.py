@@ -26,8 +26,7 @@ from ..node_groups.baked_shadow import baked_shadow_material
 from .bake.inputs import Describer, point_inside, world_description
 from .bake.probe_render import ProbeRenderer
 from .bake.scene_state import SceneState
-from .common import GEOMETRY_TYPES
-from .composite import classify_objects
+from .common import GEOMETRY_TYPES, classify_objects
 from .phantom_surface import apply_phantom_surfaces
 
 STATIC_SAMPLE_FRAMES = 48

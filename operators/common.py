@@ -75,3 +75,13 @@ class NeedsScene:
             cls.poll_message_set("Needs a scene.")
             return False
         return True
+
+
+def classify_objects(scene):
+    """(cg, phantoms): renderable objects of the scene, split by object.platelight.phantom."""
+    cg, phantoms = [], []
+    for ob in scene.objects:
+        if ob.type not in GEOMETRY_TYPES or ob.hide_render:
+            continue
+        (phantoms if ob.platelight.phantom else cg).append(ob)
+    return cg, phantoms

@@ -23,19 +23,9 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 from .. import compat
 from ..addon import names
 from ..node_groups.compositor_tree import build_compositor_tree
-from .common import GEOMETRY_TYPES, find_plate_image, set_plate_colour_management
+from .common import classify_objects, find_plate_image, set_plate_colour_management
 from .eevee_check import NO_GL_SENTENCE, eevee_available
 from .phantom_surface import apply_phantom_surfaces
-
-
-def classify_objects(scene):
-    """(cg, phantoms): renderable objects of the scene, split by object.platelight.phantom."""
-    cg, phantoms = [], []
-    for ob in scene.objects:
-        if ob.type not in GEOMETRY_TYPES or ob.hide_render:
-            continue
-        (phantoms if ob.platelight.phantom else cg).append(ob)
-    return cg, phantoms
 
 
 def _collection(scene, name):
