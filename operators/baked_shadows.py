@@ -156,14 +156,14 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
             bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) is not None and \
             os.path.isfile(os.path.join(folder, engine.RATIO_FILE)):
         return {"seconds": 0.0, "folder": folder, "centre": record["centre"], "warnings": [], "reused": True}
-    if record is not None:                      # a bake stopped halfway is never taken as current
-        os.remove(os.path.join(folder, engine.RECORD_FILE))
     centre = panorama_centre(cg)
     depsgraph = context.evaluated_depsgraph_get()
     for ob in phantoms:
         if point_inside(ob, depsgraph, centre):
             raise PlateLightError(f"The point above the CG lies inside '{ob.name}', so the shadows "
                                   "cannot be seen from there; use the Shadow Catcher method.")
+    if record is not None:                      # a bake stopped halfway is never taken as current
+        os.remove(os.path.join(folder, engine.RECORD_FILE))
     t0 = time.perf_counter()
     state = SceneState()
     # A view layer of its own: the composite's layers hold things out, exclude the CG or override
