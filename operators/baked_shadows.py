@@ -17,6 +17,7 @@ from bpy.props import BoolProperty, IntProperty
 
 from .. import compat
 from ..addon import names
+from ..addon.bake.frames import sample_frames
 from ..addon.bake.hashing import content_hash
 from ..addon.bake.layout import DEFAULT_MAPS_DIR
 from ..addon.compositing import baked_shadows as engine
@@ -50,8 +51,7 @@ def shadows_folder(scene) -> str:
 
 def check_still(scene, objects):
     """Raise unless every object keeps its place over the scene's range (sampled frames)."""
-    start, end = scene.frame_start, scene.frame_end
-    frames = np.unique(np.linspace(start, end, min(end - start + 1, STATIC_SAMPLE_FRAMES)).round().astype(int))
+    frames = sample_frames(scene.frame_start, scene.frame_end, STATIC_SAMPLE_FRAMES)
     frame0 = scene.frame_current
     here = {ob.name: np.array(ob.matrix_world) for ob in objects}
     try:

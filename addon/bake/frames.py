@@ -47,3 +47,13 @@ def parse_part(text: str) -> tuple[int, int]:
     except ValueError:
         raise PlateLightError(f"{{part}} must look like 2/4, not {text!r}.", part="The part") from None
     return part, parts
+
+
+def sample_frames(start: int, end: int, most: int) -> list[int]:
+    """Up to ``most`` frames spread evenly over start..end, both ends included (what a probe or
+    a shadow bake serving the whole range checks it against)."""
+    import numpy as np
+
+    count = max(1, min(int(end) - int(start) + 1, int(most)))
+    return [int(f) for f in np.unique(np.linspace(start, end, count).round().astype(int))]
+

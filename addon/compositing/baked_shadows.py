@@ -22,6 +22,7 @@ import os
 import numpy as np
 
 from ..exr_io import write_exr
+from ..fileio import write_json_atomic
 
 RATIO_FILE = "shadow_ratio.exr"
 RECORD_FILE = "shadow_ratio.json"
@@ -52,9 +53,9 @@ def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: 
     os.makedirs(folder, exist_ok=True)
     path = os.path.join(folder, RATIO_FILE)
     write_exr(path, texture)
-    with open(os.path.join(folder, RECORD_FILE), "w", encoding="utf-8") as f:
-        json.dump({"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples),
-                   "hash": digest}, f, indent=1)
+    write_json_atomic(os.path.join(folder, RECORD_FILE),
+                      {"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples),
+                       "hash": digest})
     return path
 
 

@@ -19,6 +19,7 @@ import bpy
 import numpy as np
 
 from ...addon.bake import culling, layout, probe_size
+from ...addon.bake.frames import sample_frames
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
 from ...addon.ibl import distance as distance_maps
@@ -183,9 +184,7 @@ class ProbeBake:
             return heights
         scene = self.scene
         if self.static:
-            start, end = scene.frame_start, scene.frame_end
-            count = min(end - start + 1, self.SIZE_SAMPLE_FRAMES)
-            frames = sorted({*np.linspace(start, end, max(count, 1)).round().astype(int).tolist(),
+            frames = sorted({*sample_frames(scene.frame_start, scene.frame_end, self.SIZE_SAMPLE_FRAMES),
                              scene.frame_current})
         else:
             frames = self.frames
