@@ -103,6 +103,56 @@ def test_roughness_knots_match_the_ggx_lobes():
     assert principled.roughness_to_glossiness(0.3) < 2 / 3
 
 
+def _dielectric_fresnel(cos_i, eta=1.5):
+    g = np.sqrt(eta ** 2 - 1 + cos_i ** 2)
+    a, b = (g - cos_i) / (g + cos_i), (cos_i * (g + cos_i) - 1) / (cos_i * (g - cos_i) + 1)
+    return 0.5 * a ** 2 * (1 + b ** 2)
+
+
+def _ggx_albedo(mu, alpha, n=256):
+    """Directional albedo of a GGX dielectric (IOR 1.5) seen at cos mu: the visible normals
+    (Heitz 2018) on an n x n midpoint grid, each weighted by Fresnel and G2/G1."""
+    wo = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
+    vh = np.array([alpha * wo[0], 0.0, wo[2]])
+    vh /= np.linalg.norm(vh)
+    t1_axis = np.array([0.0, 1.0, 0.0]) if vh[0] > 0 else np.array([1.0, 0.0, 0.0])
+    t2_axis = np.cross(vh, t1_axis)
+    u1, u2 = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
+    r, phi = np.sqrt(u1.ravel()), 2 * np.pi * u2.ravel()
+    t1, t2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1 + vh[2])
+    t2 = (1 - s) * np.sqrt(1 - t1 ** 2) + s * t2
+    nh = (t1[:, None] * t1_axis + t2[:, None] * t2_axis
+          + np.sqrt(np.maximum(0, 1 - t1 ** 2 - t2 ** 2))[:, None] * vh)
+    h = np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(nh[:, 2], 1e-9)], -1)
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    d = h @ wo
+    wi_z = 2 * d * h[:, 2] - mu
+
+    def lam(c):
+        c = np.clip(c, 1e-9, 1.0)
+        return (np.sqrt(1 + alpha ** 2 * (1 - c ** 2) / c ** 2) - 1) / 2
+    g2_over_g1 = np.where(wi_z > 0, (1 + lam(mu)) / (1 + lam(wi_z) + lam(mu)), 0.0)
+    return float(np.mean(g2_over_g1 * _dielectric_fresnel(np.clip(d, 0, 1))))
+
+
+def test_fresnel_falloff_knots_follow_the_ggx_albedo():
+    """The Fresnel falloff's exponent at each roughness knot is the least-squares fit (projected
+    area weighted) of (1 - mu)^k to the rise of GGX's directional albedo, (E(mu) - E(1)) / (1 - E(1))."""
+    mus = np.linspace(0.02, 1.0, 50)
+    exponents = np.linspace(1.0, 200.0, 3981)
+    for roughness in principled._FALLOFF_ROUGHNESS:
+        albedo = np.array([_ggx_albedo(mu, max(roughness ** 2, 1e-4)) for mu in mus])
+        rise = (albedo - albedo[-1]) / (1 - albedo[-1])
+        cost = (((1 - mus)[None, :] ** exponents[:, None] - rise) ** 2 * mus).sum(axis=1)
+        fitted = exponents[np.argmin(cost)]
+        phi = principled.roughness_to_fresnel_falloff(roughness)
+        assert 1 / phi - 1 == pytest.approx(fitted, rel=0.03), roughness
+    # polished: Schlick's exponent; rough: microfacets average the rise away
+    assert principled.roughness_to_fresnel_falloff(0.0) == pytest.approx(1 / 6, rel=0.01)
+    assert principled.roughness_to_fresnel_falloff(1.0) < 0.01
+
+
 @pytest.mark.parametrize("values", [
     principled.PrincipledValues(base_color=(0.9, 0.2, 0.1), metallic=0.0, roughness=0.3),
     principled.PrincipledValues(base_color=(0.95, 0.64, 0.54), metallic=1.0, roughness=0.1),
@@ -125,7 +175,8 @@ def test_principled_mapping_values():
         base_color=(0.5, 0.5, 0.5), metallic=0.0, ior=1.5, specular_ior_level=0.5))
     assert s.specular_albedo == pytest.approx((0.04,) * 3)         # F0 of IOR 1.5
     assert s.diffuse_albedo == pytest.approx((0.5,) * 3)
-    assert 1 / s.fresnel_falloff - 1 == pytest.approx(5.0)         # Schlick's exponent
+    # roughness 0.5 (the default): the rise is 23 (1 - cos)^23, not Schlick's 5
+    assert 1 / s.fresnel_falloff - 1 == pytest.approx(23.2, rel=0.01)
     metal = principled.principled_to_sbrdf(principled.PrincipledValues(
         base_color=(0.9, 0.6, 0.2), metallic=1.0))
     assert metal.diffuse_albedo == (0.0, 0.0, 0.0)

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-HASH_VERSION = 1          # bump when what goes into a hash changes, so old caches go stale
+HASH_VERSION = 2          # bump when what goes into a hash or a probe render changes, so old caches go stale
 
 
 def _canonical(value):

@@ -10,7 +10,11 @@ Mapping (documented in docs/sbrdf.md):
   whose reflection lobe is twice as wide: it put the maps at r = 0.418, 0.669, 0.904 and gave a
   roughness-0.3 copper 28 % of the mirror map, a sharp sun where the truth has a soft one:
   26.5 dB object PSNR against the catcher's 40.7 at 960x540.)
-- Fresnel falloff phi = 1/6: Schlick's (1 - cos)^5 is f with 1/phi - 1 = 5.
+- Fresnel falloff phi from roughness: f = (1 - cos)^(1/phi - 1) follows the rise towards grazing
+  of the GGX layer's directional albedo E(cos) (IOR 1.5), fitted by least squares at each knot:
+  Schlick's exponent 5 (phi = 1/6) for a polished surface, about 100 for a rough one, whose
+  microfacets average the Fresnel rise away. A Schlick rise on a roughness-1 sphere took 60 % of
+  the diffuse at its rim (a rough dielectric reflects 8 % there).
 - alpha = principled alpha * (1 - transmission (1 - metallic)); IOR as is; emission as is.
 - anisotropy a: Cy = -(1 - 0.9 a) (Cx = -1), rotation 2 pi * anisotropic rotation.
 """
@@ -28,6 +32,9 @@ SCHLICK_PHI = 1.0 / 6.0
 _ROUGHNESS_KNOTS = np.array([0.0, 0.2702, 0.4429, 0.6436])
 _GLOSS_KNOTS = np.array([1.0, 2 / 3, 1 / 3, 0.0])
 METAL_THRESHOLD = 0.2
+# Fitted by tests/test_material.py::test_fresnel_falloff_knots_follow_the_ggx_albedo (brute force).
+_FALLOFF_ROUGHNESS = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0])
+_FALLOFF_EXPONENT = np.array([5.0, 5.4, 6.9, 10.9, 23.2, 58.6, 86.9, 102.4, 118.1])
 
 
 @dataclasses.dataclass
@@ -53,6 +60,10 @@ def glossiness_to_roughness(glossiness: float) -> float:
     return float(np.interp(glossiness, _GLOSS_KNOTS[::-1], _ROUGHNESS_KNOTS[::-1]))
 
 
+def roughness_to_fresnel_falloff(roughness: float) -> float:
+    return 1.0 / (1.0 + float(np.interp(roughness, _FALLOFF_ROUGHNESS, _FALLOFF_EXPONENT)))
+
+
 def _f0(ior: float, level: float) -> float:
     return min(((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level, 1.0)
 
@@ -68,7 +79,7 @@ def principled_to_sbrdf(p: PrincipledValues) -> SBRDFParams:
         specular_albedo=tuple(float(c) for c in specular),
         glossiness=roughness_to_glossiness(p.roughness),
         cx=-1.0, cy=-(1.0 - 0.9 * min(max(p.anisotropic, 0.0), 1.0)), cz=1.0,
-        fresnel_falloff=SCHLICK_PHI,
+        fresnel_falloff=roughness_to_fresnel_falloff(p.roughness),
         tangent_rotation=2.0 * math.pi * (p.anisotropic_rotation % 1.0),
         emission_color=tuple(float(c) for c in p.emission_color[:3]),
         emission_strength=float(p.emission_strength),

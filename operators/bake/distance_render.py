@@ -68,12 +68,14 @@ def render_distance(scene, view_layer, folder, clip_end):
     saved = [(scene, "world", scene.world), (view_layer, "material_override", view_layer.material_override),
              (scene.cycles, "samples", scene.cycles.samples),
              (scene.cycles, "use_denoising", scene.cycles.use_denoising), (render, "filepath", render.filepath),
-             (render, "resolution_x", render.resolution_x), (render, "resolution_y", render.resolution_y)]
+             (render, "resolution_x", render.resolution_x), (render, "resolution_y", render.resolution_y),
+             (render, "film_transparent", render.film_transparent)]
     path = os.path.join(folder, "distance.exr")
     try:
         scene.world, view_layer.material_override = world, material
         scene.cycles.samples = 1
         scene.cycles.use_denoising = False          # a denoised distance is no distance
+        render.film_transparent = False             # the sky is FAR, not empty
         render.filepath = path
         height = distance_height(render.resolution_y)
         render.resolution_x, render.resolution_y = 2 * height, height

@@ -520,3 +520,30 @@ def test_owner_shadows_its_floor_in_its_own_probe_unless_the_papers_probe_is_ask
     sunlit = below()
     # Sunlit floor: 0.8/pi * 3 W/m^2 ~ 0.76 plus sky; in the ball's shadow only the dim sky.
     assert sunlit > 0.5 and shadowed < 0.25 * sunlit, (shadowed, sunlit)
+
+
+def test_sky_of_an_image_world_is_the_image_itself_not_sampled(bpy_clean, tmp_path):
+    """Where the world is an equirectangular image, the probe's sky is that image area-averaged
+    (exact: a small sun's energy does not depend on where camera samples land), under what the
+    render shows of the scene; the distance map still sees the sky as far away."""
+    from platelight.addon.exr_io import read_exr, write_exr
+    from platelight.addon.ibl.distance import FAR
+    from platelight.addon.ibl.equirect import downsample_area
+
+    bpy = bpy_clean
+    env = np.full((64, 128, 3), 0.2, np.float32)
+    env[20:22, 90:92] = (20000.0, 15000.0, 9000.0)       # a sun 2 texels wide
+    write_exr(tmp_path / "sun.exr", env)
+    new_scene(bpy, tmp_path, env_exr=tmp_path / "sun.exr", height=16, samples=2)
+    add_sphere(bpy, "Owner", (0, 0, 0), radius=0.3, color=(0.5, 0.5, 0.5))
+    add_plane(bpy, "Floor", (0, 0, -1.0), size=30, color=(0.8, 0.0, 0.0), phantom=True)
+    bake(bpy, all_objects=True, cull=False)
+
+    spec = read_map(tmp_path, "Owner", "specular")                # the probe itself (16 x 32)
+    sky = downsample_area(env, 16)
+    # The floor (30 m square, 1 m below) covers the lower half down to ~4 degrees under the horizon.
+    np.testing.assert_allclose(spec[:7], sky[:7], rtol=1e-4)
+    assert spec[12:, :, 0].mean() > 3 * spec[12:, :, 1].mean()   # below: the red floor, rendered
+    distance = read_exr(maps_folder(tmp_path, "Owner") / "distance.exr")[..., 0]
+    assert distance[: distance.shape[0] // 3].min() >= FAR * 0.99
+    assert np.median(distance[-2:]) == pytest.approx(1.0, rel=0.05)
