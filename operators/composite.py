@@ -2,15 +2,19 @@
 objects into the plate by differential rendering.
 
 Objects are sorted into two collections: "PlateLight Phantoms" (object.platelight.phantom: stand-ins
-for real things) and "PlateLight CG" (every other renderable object). Two methods:
+for real things) and "PlateLight CG" (every other renderable object). The methods (AUTO, the
+default, takes BAKED when the shot's shadows are baked and current, else CATCHER):
 
-- CATCHER (default, one render per frame): phantoms are Cycles shadow catchers. They hide CG
+- CATCHER (one render per frame): phantoms are Cycles shadow catchers. They hide CG
   behind them (a catcher is transparent in the render and occludes what is behind it), and the
   Shadow Catcher pass is the ratio (with CG)/(without CG) of the light they receive: shadows,
   reflections and colour bleeding in one pass. The ratio form with Without = 1.
 - DIFFERENTIAL (Debevec 1998, three renders): "PlateLight CG" renders the CG with phantoms as
   holdouts; "PlateLight Local" renders the phantoms with the CG indirect-only (they cast shadows
   and light, unseen); "PlateLight Local Without" renders the phantoms alone. Ratio or additive.
+- LAYERED: the CG alone at CG Samples, the shadows in a catcher layer at the scene's samples.
+- BAKED: the CG at CG Samples, and the phantoms showing the shot's shadows baked once by
+  platelight.bake_shadows (operators/baked_shadows.py): no path-traced shadow per frame.
 
 Either way the phantoms are lit by whatever lights the scene: the world probe (path-traced, the
 reference) or lamps made by platelight.lights_from_probe (sharp sun shadows; in Cycles not
@@ -98,6 +102,8 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
     method: EnumProperty(
         name="Method",
         items=(
+            ("AUTO", "Automatic", "Baked Shadows when the shot's shadows are baked and still fit the "
+             "scene (the fastest route at equal error), else Shadow Catcher"),
             ("CATCHER", "Shadow Catcher", "One render: phantoms are shadow catchers; the catcher pass "
              "is the with/without ratio (fast)"),
             ("LAYERED", "Layered Catcher", "Two renders: the CG alone at CG Samples (noise-free "
@@ -108,7 +114,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
              "showing the shot's shadows baked once by Bake Shadows (a still CG on matte phantoms, "
              "the camera free to move)"),
         ),
-        default="CATCHER",
+        default="AUTO",
     )
     engine: EnumProperty(
         name="Engine",
@@ -140,7 +146,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         name="Denoise",
         description="Run OpenImageDenoise on the CG and on the shadow/local-scene passes before "
         "dividing (smooth at few samples); pixels the CG does not reach keep their raw, exact values",
-        default=False,
+        default=True,
     )
     samples: IntProperty(
         name="Samples",
@@ -178,6 +184,14 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             return {"CANCELLED"}
 
         method = self.method
+        if method == "AUTO":
+            from .baked_shadows import baked_is_current     # (it imports this module)
+
+            current = baked_is_current(scene) if baked is not None else None
+            method = "BAKED" if current else "CATCHER"
+            if current is False:
+                self.report({"WARNING"}, "The baked shadows do not match the scene any more: the "
+                            "Shadow Catcher renders them instead; run Bake Shadows again to use them.")
         if self.engine == "EEVEE":
             if not eevee_available():
                 self.report({"WARNING"}, NO_GL_SENTENCE)

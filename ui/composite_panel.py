@@ -37,6 +37,7 @@ class PLATELIGHT_PT_compositing(bpy.types.Panel):
         tree = compat.compositor_tree(scene)
         col.label(text=f"Composite: {tree.name if tree else 'not set up'}", icon="NODE_COMPOSITING")
         col.prop(scene.platelight, "phantom_surface")
+        col.operator("platelight.setup_composite", text="Set Up Composite", icon="NODE_COMPOSITING")
         row = col.row(align=True)
         row.operator("platelight.setup_composite", text="Shadow Catcher").method = "CATCHER"
         row.operator("platelight.setup_composite", text="Differential").method = "DIFFERENTIAL"

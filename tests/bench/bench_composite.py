@@ -14,7 +14,9 @@ PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
 PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
 PLATELIGHT_BENCH_EXTRA=layered (the layered route too), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
 subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
-16,64,256), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/).
+16,64,256), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/), PLATELIGHT_BENCH_KEEP_ROWS=1
+(re-run a subset: the rows file's other rows stay, a re-run row replaces its old one, and the
+report covers them all).
 """
 from __future__ import annotations
 
@@ -434,7 +436,9 @@ def main(out_dir: pathlib.Path) -> None:
     hdri_path = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{HDRI}.exr")
     folder = CACHE / (SIZE if DEVICE == "CPU" else f"{SIZE}_{DEVICE.lower()}")
     only = os.environ.get("PLATELIGHT_BENCH_SCENES")
-    rows = []
+    rows_file = folder / os.environ.get("PLATELIGHT_BENCH_ROWS", "rows.json")
+    rows = json.loads(rows_file.read_text()) if os.environ.get("PLATELIGHT_BENCH_KEEP_ROWS") \
+        and rows_file.exists() else []
     for name, (material_name, box) in SHOT_SCENES.items():
         if only and name not in only.split(","):
             continue
@@ -462,17 +466,28 @@ def main(out_dir: pathlib.Path) -> None:
                     bpy, hdri_path, material, box, key, samples, plate_path, folder / tag)
                 warm = seconds[-1]
                 images = [image for image, frame in zip(images, RENDER_FRAMES) if frame in SCORED_FRAMES]
-                rows.append(dict(material=name, route=route, samples=samples, bake_s=bake_s,
-                                 setup_s=setup_s, first_s=seconds[0], warm_s=warm,
-                                 shot_s=(bake_s + setup_s + seconds[0] + (SHOT_FRAMES - 1) * warm) / SHOT_FRAMES,
-                                 psnr_object=pooled_psnr(images, truths, obj_masks, peak),
-                                 psnr_shadow=pooled_psnr(images, truths, shadow_masks, peak),
-                                 psnr_all=pooled_psnr(images, truths, everything, peak),
-                                 object_px=int(obj_masks[0].sum()), shadow_px=int(shadow_masks[0].sum()),
-                                 load=os.getloadavg()[0]))
-                print(rows[-1], flush=True)
-                (folder / os.environ.get("PLATELIGHT_BENCH_ROWS", "rows.json")).write_text(json.dumps(rows, indent=1))
+                row = dict(material=name, route=route, samples=samples, bake_s=bake_s,
+                           setup_s=setup_s, first_s=seconds[0], warm_s=warm,
+                           shot_s=(bake_s + setup_s + seconds[0] + (SHOT_FRAMES - 1) * warm) / SHOT_FRAMES,
+                           psnr_object=pooled_psnr(images, truths, obj_masks, peak),
+                           psnr_shadow=pooled_psnr(images, truths, shadow_masks, peak),
+                           psnr_all=pooled_psnr(images, truths, everything, peak),
+                           object_px=int(obj_masks[0].sum()), shadow_px=int(shadow_masks[0].sum()),
+                           load=os.getloadavg()[0])
+                _put_row(rows, row)
+                print(row, flush=True)
+                rows_file.write_text(json.dumps(rows, indent=1))
         write_report(out_dir, rows)          # after each scene: a long run reports what it has
+
+
+def _put_row(rows, row):
+    """Replace the row of the same scene, route and samples (a re-run), else append."""
+    same = [i for i, r in enumerate(rows)
+            if (r["material"], r["route"], r["samples"]) == (row["material"], row["route"], row["samples"])]
+    if same:
+        rows[same[0]] = row
+    else:
+        rows.append(row)
 
 
 def equal_time_and_error(rows, material, route, key):

@@ -72,10 +72,18 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
     if far.any():
         assert np.abs(ratio[far] - 1.0).max() < 0.01
 
+    # the default method takes a current bake
+    assert bpy.ops.platelight.setup_composite() == {"FINISHED"}
+    assert "(baked, cycles)" in capfd.readouterr().out
+
     # the ball moved: the bake is stale, and the composite says so
     ball.location.z += 0.2
     assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=4) == {"FINISHED"}
     assert "run Bake Shadows again" in capfd.readouterr().out
+    # and the default method no longer takes it
+    assert bpy.ops.platelight.setup_composite() == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert "(catcher, cycles)" in said and "Shadow Catcher renders them instead" in said
     assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
     assert probe_renders() > renders
 

@@ -209,3 +209,15 @@ def test_cg_blur_softens_edges_and_keeps_energy(bpy_clean, tmp_path):
     edge_sharp = (np.abs(sharp - 0.5).max(2) > 1e-3).sum()
     edge_soft = (np.abs(soft - 0.5).max(2) > 1e-3).sum()
     assert edge_soft > edge_sharp + 60
+
+
+@pytest.mark.parametrize("method", ["CATCHER", "DIFFERENTIAL"])
+def test_shadow_passes_are_denoised_by_default(bpy_clean, tmp_path, method):
+    """The README's steps take every default: the shadow (or local-scene) passes and the CG go
+    through OpenImageDenoise unless the artist turns it off (a merge once turned it off)."""
+    bpy = bpy_clean
+    scene, _plate = build_scene(bpy, tmp_path, method)          # setup_composite's defaults
+    tree = compat.compositor_tree(scene)
+    assert any(node.bl_idname == "CompositorNodeDenoise" for node in tree.nodes)
+    assert bpy.ops.platelight.setup_composite(method=method, denoise_shadows=False) == {"FINISHED"}
+    assert not any(node.bl_idname == "CompositorNodeDenoise" for node in compat.compositor_tree(scene).nodes)
