@@ -217,7 +217,7 @@ def test_shadow_passes_are_denoised_by_default(bpy_clean, tmp_path, method):
     through OpenImageDenoise unless the artist turns it off (a merge once turned it off)."""
     bpy = bpy_clean
     scene, _plate = build_scene(bpy, tmp_path, method)          # setup_composite's defaults
-    tree = compat.compositor_tree(scene)
+    tree = compat().compositor_tree(scene)
     assert any(node.bl_idname == "CompositorNodeDenoise" for node in tree.nodes)
     assert bpy.ops.platelight.setup_composite(method=method, denoise_shadows=False) == {"FINISHED"}
-    assert not any(node.bl_idname == "CompositorNodeDenoise" for node in compat.compositor_tree(scene).nodes)
+    assert not any(node.bl_idname == "CompositorNodeDenoise" for node in compat().compositor_tree(scene).nodes)

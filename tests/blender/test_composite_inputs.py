@@ -327,7 +327,8 @@ def test_compositing_panel_draws_existing_operators(bpy_clean):
     panel_module.PLATELIGHT_PT_compositing.draw(type("P", (), {"layout": recorder})(), bpy.context)
     panel_module.PLATELIGHT_PT_clip_tracking.draw(type("P", (), {"layout": recorder})(), bpy.context)
     ops = [(args[0], vars(props)) for name, args, _, props in recorder.calls if name == "operator"]
-    assert len(ops) == 14
+    assert len(ops) == 15
+    assert ("platelight.setup_composite", {}) in ops        # the default method (AUTO)
     assert {"platelight.track_markers", "platelight.capture_probe", "platelight.setup_lens",
             "platelight.export_farm_job", "platelight.bake_shadows"} <= {idname for idname, _ in ops}
     for idname, settings in ops:
