@@ -100,6 +100,8 @@ class ProbeRenderer:
         state.set(cycles, "device", "CPU")
         state.set(cycles, "samples", self.samples or scene.platelight.probe_samples)
         state.set(cycles, "use_adaptive_sampling", False)
+        # glass shows the sky it refracts (a transparent-glass film would lay the unrefracted sky there)
+        state.set(cycles, "film_transparent_glass", False)
         state.set(cycles, "use_denoising", self.denoise)
         state.set(cycles, "seed", 0)
         state.set(cycles, "use_animated_seed", False)
