@@ -27,6 +27,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 from .. import compat
 from ..addon import names
 from ..node_groups.compositor_tree import build_compositor_tree
+from .baked_shadows import baked_is_current
 from .common import classify_objects, find_plate_image, set_plate_colour_management
 from .eevee_check import NO_GL_SENTENCE, eevee_available
 from .phantom_surface import apply_phantom_surfaces
@@ -185,8 +186,6 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
 
         method = self.method
         if method == "AUTO":
-            from .baked_shadows import baked_is_current     # (it imports this module)
-
             current = baked_is_current(scene) if baked is not None else None
             method = "BAKED" if current else "CATCHER"
             if current is False:
@@ -265,8 +264,6 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                               self.denoise_shadows)
 
         if method == "BAKED":
-            from .baked_shadows import baked_is_current     # (it imports this module)
-
             if not baked_is_current(scene):
                 self.report({"WARNING"}, "The baked shadows do not match the scene any more (an "
                             "object, the world or a setting changed): run Bake Shadows again.")

@@ -32,7 +32,6 @@ import numpy as np
 
 from .params import SBRDFParams
 
-SCHLICK_PHI = 1.0 / 6.0
 # Fitted by tests/test_material.py::test_roughness_knots_match_the_ggx_lobes (brute force).
 _ROUGHNESS_KNOTS = np.array([0.0, 0.2702, 0.4429, 0.6436])
 _GLOSS_KNOTS = np.array([1.0, 2 / 3, 1 / 3, 0.0])

@@ -32,6 +32,7 @@ PROBE_WORLD_MAP_RESOLUTION = 256
 # under the render's alpha (film transparent) rather than path-traced: a camera ray finds a small
 # sun in 16 samples of a 128x64 texel with about 30 % noise. The city HDRI's sun came out 9 % weak,
 # which left a diffuse sphere 3-5 % too dark (docs/decisions.md).
+
 # Counts Cycles probe renders (tests and benchmarks read it to prove a cache hit renders nothing).
 render_count = 0
 # An owner baked with its shadows (scene.platelight.probe_owner_shadows) is invisible to these
