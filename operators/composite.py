@@ -185,6 +185,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             return {"CANCELLED"}
 
         method = self.method
+        current = None                  # does the shadow bake fit the scene (hashed once, when asked)
         if method == "AUTO":
             current = baked_is_current(scene) if baked is not None else None
             method = "BAKED" if current else "CATCHER"
@@ -264,7 +265,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                               self.denoise_shadows)
 
         if method == "BAKED":
-            if not baked_is_current(scene):
+            if current is None:         # BAKED asked for by name: not hashed yet
+                current = baked_is_current(scene)
+            if not current:
                 self.report({"WARNING"}, "The baked shadows do not match the scene any more (an "
                             "object, the world or a setting changed): run Bake Shadows again.")
         if not phantoms:
