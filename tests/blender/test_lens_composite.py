@@ -113,12 +113,6 @@ def test_cg_sits_on_its_marker_in_the_distorted_composite(bpy_clean, tmp_path):
           f"{got_area:.1f} vs {area:.1f} px^2; without the lens the centroid would be "
           f"{np.linalg.norm(pinhole_centroid - centroid):.2f} px off")
     centroid_error, area_error = np.linalg.norm(got_centroid - centroid), abs(got_area - area) / area
-    if compat().VERSION >= (5, 3) and (centroid_error >= 0.25 or area_error >= 0.01):
-        # Known gap (README, "what differs"): on bpy 5.3.0 the same ST-map lands the CG 0.41 px
-        # off with 1.3 % less area; 4.5 and 5.2 pass the same bounds. Cause not found yet; not
-        # the Map UV node (a ramp through it samples identically on 5.2 and 5.3).
-        pytest.xfail(f"Blender 5.3 redistortion: centroid {centroid_error:.2f} px, area "
-                     f"{100 * area_error:.1f} % off")
     assert centroid_error < 0.25
     assert area_error < 0.01
     assert np.linalg.norm(pinhole_centroid - centroid) > 1.5       # the lens matters here (2.4 px)
