@@ -37,8 +37,14 @@ UNSURE_CONFIDENCE = 0.5
 MAX_ELLIPTICITY = 0.08      # |rx/ry - 1| beyond this is not "a ball seen slightly off-axis"
 RIVAL_SHARE = 0.6           # a second, separate ball this well supported (relative to the best,
 MIN_RIVAL = 0.25            # and absolutely) makes the choice ambiguous
-ELLIPSE_GAIN = 0.02
-MIN_RADIUS_PX = 32          # smaller balls unwrap to too few pixels to be worth finding by themselves         # an ellipse must see this much more of the rim than a circle
+ELLIPSE_GAIN = 0.02         # an ellipse must see this much more of the rim than a circle
+MIN_RADIUS_PX = 32          # smaller balls unwrap to too few pixels to be worth finding by themselves
+# A ray whose band is clipped (8/16-bit white) on this share of its samples cannot show a rim: a
+# ball reflecting a white sky against that sky. Such rays, like rays leaving the photo, do not
+# count against the ball, as long as at least MIN_SEEN of the outline can be seen.
+CLIPPED_BAND = 0.9
+CLIP_LEVEL = 0.97 * 255     # linear luminance (0..255 scale) at which an 8/16-bit pixel is white
+MIN_SEEN = 0.5
 LAST_FITS: list = []
 HOW_TO_GIVE = "give its circle with {ball}"        # {ball}: named by each front end (wording.py)
 BALL = {"ball": "its centre and radius in pixels"}
@@ -140,6 +146,7 @@ class RimSteps:
     rel: np.ndarray          # (N,) position along the ray, relative to the guessed radius
     width: np.ndarray        # (N,) px, width at half the step's peak gradient
     usable: np.ndarray       # (RAYS,) rays whose band lies inside the photo
+    seen: np.ndarray         # (RAYS,) usable rays whose band is not clipped white
     theta: np.ndarray        # (RAYS,) ray angles
     guess: tuple             # (cx, cy, rx, ry)
 
@@ -150,10 +157,11 @@ class RimSteps:
 
 
 def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, reach: float,
-              rays: int = RAYS) -> RimSteps:
+              rays: int = RAYS, clip: float | None = None) -> RimSteps:
     """The strong steps (local maxima of the gradient above 35 % of the ray's strongest) on
     ``rays`` rays within ``reach`` (relative) of the ellipse, to a sub-sample (``linear``
-    already smoothed: see ``smoothed``). Rays whose band leaves the photo are not used."""
+    already smoothed: see ``smoothed``). Rays whose band leaves the photo are not used; rays
+    whose band is white (``linear`` >= ``clip``) are marked unseen."""
     import cv2
 
     r = max(rx, ry)
@@ -167,6 +175,10 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
     inside = np.isfinite(prof)
     # a ray is used while most of its band lies in the photo (a ball touching the frame)
     usable = inside.mean(axis=1) > 0.6
+    seen = usable.copy()
+    if clip is not None:
+        white = (np.nan_to_num(prof) >= clip).sum(axis=1) >= CLIPPED_BAND * np.maximum(inside.sum(axis=1), 1)
+        seen &= ~white
     grad = np.abs(np.diff(np.nan_to_num(prof), axis=1))
     grad[~usable] = 0
     grad[~(inside[:, 1:] & inside[:, :-1])] = 0
@@ -195,7 +207,7 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
             alive = ok
             if not alive.any():
                 break
-    return RimSteps(ray, pos, width * step * r, usable, theta, (cx, cy, rx, ry))
+    return RimSteps(ray, pos, width * step * r, usable, seen, theta, (cx, cy, rx, ry))
 
 
 def smoothed(linear: np.ndarray) -> np.ndarray:
@@ -261,14 +273,14 @@ def _pick(steps: RimSteps, target_rel: np.ndarray, window: float) -> np.ndarray:
 
 
 def refine(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, reach: float,
-           allow_ellipse: bool = True) -> BallFit | None:
+           allow_ellipse: bool = True, clip: float | None = None) -> BallFit | None:
     """Fit the rim near a guess; None when too little of the outline shows a step.
 
     Two starts: the outermost strong step on each ray, and the step nearest the guess (in
     clutter, or where the photo's own frame runs just outside the ball, the outermost step is
     not the rim); each is refitted twice from the outermost step near its own outline, and
     the start with the larger rim support wins."""
-    steps = rim_steps(linear, cx, cy, rx, ry, reach)
+    steps = rim_steps(linear, cx, cy, rx, ry, reach, clip=clip)
     if len(steps.ray) < 0.15 * RAYS:
         return None
     angles_all = steps.theta[steps.ray]
@@ -332,7 +344,10 @@ def _score(steps: RimSteps, fit) -> BallFit | None:
     loose = np.zeros(RAYS, bool)
     loose[steps.ray[close]] = True
     width = float(np.median(steps.width[close])) if close.any() else 0.0
-    return BallFit(cx, cy, rx, ry, arc_support(on), float(1 - steps.usable.mean()), arc_support(loose), width)
+    # of the outline that could show a rim (in the photo, not clipped white), how much does
+    seen = max(float(steps.seen.mean()), MIN_SEEN)
+    return BallFit(cx, cy, rx, ry, min(1.0, arc_support(on) / seen), float(1 - steps.usable.mean()),
+                   min(1.0, arc_support(loose) / seen), width)
 
 
 def arc_support(on: np.ndarray, min_run: int = MIN_ARC_RAYS) -> float:
@@ -351,6 +366,7 @@ def find_ball(image: np.ndarray) -> BallFit:
     import cv2
 
     display, linear = luminance_planes(image)
+    clip = CLIP_LEVEL if np.issubdtype(np.asarray(image).dtype, np.integer) else None
     h, w = display.shape
     # candidates are refined on a copy of the search size, the best few then at full resolution
     shrink = max(1.0, max(h, w) / SEARCH_SIZE)
@@ -362,16 +378,19 @@ def find_ball(image: np.ndarray) -> BallFit:
 
     coarse = []
     for cx, cy, rx, ry in _candidates(display):
-        fit = refine(small, to_small(cx), to_small(cy), rx / shrink, ry / shrink, reach=0.12)
+        fit = refine(small, to_small(cx), to_small(cy), rx / shrink, ry / shrink, reach=0.12, clip=clip)
         if fit is not None:          # Hough's circle can be >12 % off (a ball the frame cuts)
-            fit = refine(small, fit.cx, fit.cy, fit.rx, fit.ry, reach=0.06) or fit
+            closer = refine(small, fit.cx, fit.cy, fit.rx, fit.ry, reach=0.06, clip=clip)
+            if closer is not None and closer.confidence >= fit.confidence:     # (it can lose the rim)
+                fit = closer
         if fit is not None and MIN_RADIUS_PX <= fit.radius * shrink <= 0.6 * max(h, w):
             coarse.append(fit)
     full = smoothed(linear) if shrink > 1 else small
     fits = []
     for f in _distinct(coarse)[:4]:
         cx, cy = (f.cx + 0.5) * shrink - 0.5, (f.cy + 0.5) * shrink - 0.5
-        fine = refine(full, cx, cy, f.rx * shrink, f.ry * shrink, reach=max(0.02, 3.0 / f.radius))  # 3 px of the copy
+        fine = refine(full, cx, cy, f.rx * shrink, f.ry * shrink, reach=max(0.02, 3.0 / f.radius),  # 3 px of the copy
+                      clip=clip)
         if fine is not None:
             fits.append(fine)
     fits = _distinct(fits)
