@@ -581,11 +581,14 @@ def write_report(out_dir, rows):
     if rows:
         lines += ["", f"Mask sizes (frame 1 of the first scene): object {rows[0]['object_px']} px, "
                   f"shadow {rows[0]['shadow_px']} px."]
+    catcher_spp = [r["samples"] for r in rows if r["route"] == SHOT_REFERENCE] or [0]
+    fewest, most = min(catcher_spp), max(catcher_spp)
     lines += ["", "## Against Cycles' shadow catcher (the issue's goal)", "",
               "Per scene and route: the most dB gained over the catcher at equal time per frame "
               "(its PSNR interpolated in log time; before its fastest point, its fastest point), "
               "and the largest speed-up at equal PSNR (— where the catcher is never that good "
-              "within 256 spp; ≤ N× where the route is worse than the catcher at 16 spp, so N is only an upper bound). Goal: ≥ 10× faster at equal error on object and shadow, mirror "
+              f"within {most} spp; ≤ N× where the route is worse than the catcher at {fewest} spp, so N is "
+              "only an upper bound). Goal: ≥ 10× faster at equal error on object and shadow, mirror "
               "≥ 40 dB and glossy ≥ 38 dB object PSNR.", "",
               "| scene | route | gain object | gain shadow | gain frame | speed-up object | speed-up shadow | speed-up frame |",
               "|---|---|---:|---:|---:|---:|---:|---:|"]
