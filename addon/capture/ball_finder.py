@@ -56,7 +56,7 @@ class BallFit:
     cy: float
     rx: float
     ry: float
-    confidence: float                  # share of the outline where a sharp rim was found
+    confidence: float                  # share of the visible outline where a sharp rim was found
     outside: float = 0.0               # share of the outline's search band outside the photo
     blurred_support: float = 0.0       # the same share counting blurred steps too
     rim_width: float = 0.0             # median width (px) of the rim's step
@@ -344,7 +344,7 @@ def _score(steps: RimSteps, fit) -> BallFit | None:
     loose = np.zeros(RAYS, bool)
     loose[steps.ray[close]] = True
     width = float(np.median(steps.width[close])) if close.any() else 0.0
-    # of the outline that could show a rim (in the photo, not clipped white), how much does
+    # the share of the outline that could show a rim (in the photo, not clipped white) that does
     seen = max(float(steps.seen.mean()), MIN_SEEN)
     return BallFit(cx, cy, rx, ry, min(1.0, arc_support(on) / seen), float(1 - steps.usable.mean()),
                    min(1.0, arc_support(loose) / seen), width)
