@@ -1,6 +1,8 @@
 """Frame ranges: parse ``10-20`` / ``7`` / ``1-3,8``, and split a range across machines."""
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import PlateLightError
 
 
@@ -52,8 +54,5 @@ def parse_part(text: str) -> tuple[int, int]:
 def sample_frames(start: int, end: int, most: int) -> list[int]:
     """Up to ``most`` frames spread evenly over start..end, both ends included (what a probe or
     a shadow bake serving the whole range checks it against)."""
-    import numpy as np
-
     count = max(1, min(int(end) - int(start) + 1, int(most)))
     return [int(f) for f in np.unique(np.linspace(start, end, count).round().astype(int))]
-

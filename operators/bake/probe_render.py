@@ -28,11 +28,6 @@ PROBE_CLIP_START = 1e-3
 # too dark (docs/compositing.md), so the world's own resolution is the default.
 PROBE_WORLD_MAP_RESOLUTION = 256
 
-# Where the world is an equirectangular image, the probe's sky is that image, area-averaged, laid
-# under the render's alpha (film transparent) rather than path-traced: a camera ray finds a small
-# sun in 16 samples of a 128x64 texel with about 30 % noise. The city HDRI's sun came out 9 % weak,
-# which left a diffuse sphere 3-5 % too dark (docs/decisions.md).
-
 # Counts Cycles probe renders (tests and benchmarks read it to prove a cache hit renders nothing).
 render_count = 0
 # An owner baked with its shadows (scene.platelight.probe_owner_shadows) is invisible to these
@@ -182,7 +177,12 @@ class ProbeRenderer:
 
     def _exact_world(self):
         """The world as an array (in world axes, times its strength) when it is exactly an
-        equirectangular image that reads; else None, and the sky is path-traced as before."""
+        equirectangular image that reads; else None, and the sky is path-traced as before.
+
+        That image, area-averaged, is laid under the render's alpha (film transparent) rather than
+        path-traced: a camera ray finds a small sun in 16 samples of a 128x64 texel with about 30 %
+        noise. The city HDRI's sun came out 9 % weak, which left a diffuse sphere 3-5 % too dark
+        (docs/decisions.md)."""
         found = world_image(self.scene.world)
         if found is None:
             return None
