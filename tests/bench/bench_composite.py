@@ -14,7 +14,7 @@ PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
 PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
 PLATELIGHT_BENCH_EXTRA=layered (the layered route too), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
 subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
-16,64,256), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/), PLATELIGHT_BENCH_KEEP_ROWS=1
+2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/), PLATELIGHT_BENCH_KEEP_ROWS=1
 (re-run a subset: the rows file's other rows stay, a re-run row replaces its old one, and the
 report covers them all).
 """
@@ -299,7 +299,7 @@ SHOT_SCENES = {       # in the order they run: a run stopped early reports what 
 }
 SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_baked", (4, 16)),
                ("platelight eevee", "sbrdf_eevee", (4,)),
-               ("platelight (paper)", "sbrdf_paper", (16,)), ("catcher", "cycles", (16, 64, 256)))
+               ("platelight (paper)", "sbrdf_paper", (16,)), ("catcher", "cycles", (2, 4, 16, 64, 256)))
 # measured at 96x54 and left out of the default run: no better than the one-layer default there
 EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,))}
 SHOT_REFERENCE = "catcher"
