@@ -93,6 +93,24 @@ def test_maps_needed_unions_materials_and_defaults_to_all():
     assert needs.maps_needed([]) == needs.MAP_NAMES
 
 
+def test_owner_visibility_follows_how_sharply_the_owner_reflects():
+    """A sharp reflector's probe shows the floor under it as it is (the owner blocks and bounces
+    its indirect light); a matte or glossy one keeps the shadow-only owner; the paper's setting
+    hides it whatever it is."""
+    mirror = needs.Lobes(diffuse=False, specular=True, glossiness=0.9, fresnel=True)
+    copper = needs.Lobes(diffuse=False, specular=True, glossiness=0.6, fresnel=True)
+    matte = needs.Lobes(diffuse=True, specular=False, glossiness=0.0, fresnel=False)
+    textured = needs.Lobes(diffuse=True, specular=True, glossiness=None, fresnel=True)
+    assert needs.owner_visibility([mirror], True) == needs.OWNER_INDIRECT
+    assert needs.owner_visibility([matte, mirror], True) == needs.OWNER_INDIRECT
+    assert needs.owner_visibility([textured], True) == needs.OWNER_INDIRECT
+    assert needs.owner_visibility([copper], True) == needs.OWNER_SHADOWS
+    assert needs.owner_visibility([matte], True) == needs.OWNER_SHADOWS
+    assert needs.owner_visibility([], True) == needs.OWNER_SHADOWS
+    for lobes in ([mirror], [matte], []):
+        assert needs.owner_visibility(lobes, False) == needs.OWNER_HIDDEN
+
+
 def test_map_weights_blend_neighbouring_anchors():
     """The one glossiness rule: weights sum to 1, at most two neighbours are non-zero, and the
     map anchored at n has weight 1 there."""

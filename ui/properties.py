@@ -119,7 +119,8 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         name="Owner Shadows",
         description="The object still casts its shadows in its own probe (it is invisible to the "
         "probe's rays, not removed): the floor under a ball is seen shadowed from the ball, as it "
-        "is. Off: the paper's probe, with the owner simply hidden",
+        "is; a mirror-like object also blocks and bounces the floor's indirect light there. Off: "
+        "the paper's probe, with the owner simply hidden",
         default=True,
     )
     probe_parallax: BoolProperty(

@@ -243,13 +243,21 @@ def _nonzero(node, name):
 
 
 def maps_for(ob) -> tuple[str, ...]:
-    mats = [slot.material for slot in ob.material_slots]
-    return needs.maps_needed([lobes_of_material(m) for m in mats])
+    return needs.maps_needed(_lobes(ob))
 
 
 def wants_sharp_probe(ob) -> bool:
     """Is ``ob``'s reflection sharp enough that its probe is sized to it on screen (needs.py)?"""
-    return needs.needs_sharp_specular([lobes_of_material(slot.material) for slot in ob.material_slots])
+    return needs.needs_sharp_specular(_lobes(ob))
+
+
+def owner_visibility(ob, owner_shadows: bool) -> str:
+    """How ``ob``'s own probe sees it (needs.owner_visibility)."""
+    return needs.owner_visibility(_lobes(ob), owner_shadows)
+
+
+def _lobes(ob) -> list:
+    return [lobes_of_material(slot.material) for slot in ob.material_slots]
 
 
 def point_inside(ob, depsgraph, point) -> bool:

@@ -18,7 +18,7 @@ import os
 import bpy
 import numpy as np
 
-from ...addon.bake import culling, layout, probe_size
+from ...addon.bake import culling, layout, needs, probe_size
 from ...addon.bake.frames import sample_frames
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
@@ -26,13 +26,17 @@ from ...addon.ibl import distance as distance_maps
 from ...addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, write_maps
 from ..common import GEOMETRY_TYPES
 from ..phantom_surface import apply_phantom_surfaces
-from .inputs import (Describer, maps_for, point_inside, probe_origin,
+from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin,
                      renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
 from . import distance_render
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
 from .records import pack_maps, probe_hash, world_maps_hash
 from .scene_state import SceneState
 from ..world_environment import probe_image
+
+# needs.owner_visibility's answer -> the ProbeRenderer.render argument that places the owner.
+OWNER_RENDER_ARGUMENT = {needs.OWNER_HIDDEN: "hidden", needs.OWNER_SHADOWS: "shadow_only",
+                         needs.OWNER_INDIRECT: "camera_hidden"}
 
 
 class ProbeBake:
@@ -238,10 +242,13 @@ class ProbeBake:
         return float(np.linalg.norm(centre - origin)) - radius <= self.scene.platelight.probe_distance
 
     # ---- probe rendering
-    def render_probe(self, origin, hidden=(), shadow_only=(), distance=False, height=None):
+    def render_probe(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=()):
         """The panorama seen from ``origin`` (probe_render.ProbeRenderer.render)."""
         return self._renderer.render(origin, hidden=hidden, shadow_only=shadow_only, distance=distance,
-                                     height=height)
+                                     height=height, camera_hidden=camera_hidden)
+
+    def owner_visibility(self, ob) -> str:
+        return owner_visibility(ob, self.scene.platelight.probe_owner_shadows)
 
     def map_settings(self, sized_height=None):
         """Map sizes: never larger than the probe; a probe sized to its object on screen
@@ -259,7 +266,8 @@ class ProbeBake:
         seen = sorted((o.name_full, self._describer.seen_digest(o, frame)) for o in self.scene.objects
                       if o is not ob and o is not self._renderer.camera and renderable(o, self.view_layer)
                       and self._in_range(origin, o))
-        return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.heights.get(ob.name))
+        return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.heights.get(ob.name),
+                          self.owner_visibility(ob))
 
     # ---- steps
     def start(self):
@@ -303,10 +311,8 @@ class ProbeBake:
             # parallax corrects the specular/glossy look-ups only: a matte object needs no distances
             wants_distance = any(name != "diffuse" for name in maps)
             height = self.heights.get(ob.name)
-            if self.scene.platelight.probe_owner_shadows:
-                env = self.render_probe(origin, shadow_only=[ob], distance=wants_distance, height=height)
-            else:                                       # the paper: the owner is simply hidden
-                env = self.render_probe(origin, hidden=[ob], distance=wants_distance, height=height)
+            owner = {OWNER_RENDER_ARGUMENT[self.owner_visibility(ob)]: [ob]}
+            env = self.render_probe(origin, distance=wants_distance, height=height, **owner)
             result = compute_maps(env, self.map_settings(height), which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)

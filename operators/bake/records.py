@@ -8,19 +8,22 @@ import numpy as np
 
 from ...addon import names
 from ...addon.bake.hashing import content_hash
+from ...addon.bake.needs import OWNER_INDIRECT
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
 from ...addon.ibl.maps import map_filename
 
 
-def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None):
+def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner=None):
     """The hash of one object's probe: where it sits, which maps, the world, the bake settings,
     the probe's height when it is sized to the object on screen, Cycles' bounces and ``seen``
     (sorted (object, description digest) of what the probe sees)."""
     settings = scene.platelight
     cycles = scene.cycles
     sized = {"sized_height": sized_height} if sized_height else {}     # older records stay valid
+    # An owner seen by the probe's indirect rays makes another probe; the older modes hash as before.
+    indirect = {"owner": owner} if owner == OWNER_INDIRECT else {}
     return content_hash({
-        **sized,
+        **sized, **indirect,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
         "distance": DISTANCE_VERSION,
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,

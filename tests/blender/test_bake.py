@@ -522,6 +522,35 @@ def test_owner_shadows_its_floor_in_its_own_probe_unless_the_papers_probe_is_ask
     assert sunlit > 0.5 and shadowed < 0.25 * sunlit, (shadowed, sunlit)
 
 
+def test_a_mirror_owner_lights_and_shades_the_floor_of_its_own_probe(bpy_clean, tmp_path):
+    """A sharp reflector reads the floor under itself, so its probe shows that floor as it is: the
+    owner, invisible to the probe's camera, still blocks and bounces the floor's light (here its
+    green glow reaches the floor). A matte owner only shadows it. Each mode hashes apart, and the
+    owner's ray visibility is restored."""
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.05, 0.05, 0.05))
+    ball = add_sphere(bpy, "Ball", (0, 0, 0.5), radius=0.5, color=(0, 0, 0), emission=(0, 5, 0))
+    add_plane(bpy, "Floor", (0, 0, 0), size=20, color=(0.8, 0.8, 0.8), phantom=True)
+    bsdf = ball.active_material.node_tree.nodes["Principled BSDF"]
+    flags = {f: getattr(ball, f) for f in bake_module("probe_render").SHADOW_ONLY_HIDDEN_RAYS}
+
+    def floor_green():
+        spec = read_map(tmp_path, "Ball", "specular")
+        below = spec[-max(spec.shape[0] // 8, 1):]                # looking down: the floor under it
+        return float((below[..., 1] - below[..., 0]).mean())
+
+    bsdf.inputs["Roughness"].default_value = 1.0                 # matte: shadows only
+    bake(bpy, all_objects=True, cull=False)
+    matte = floor_green()
+    before = probe_renders()
+    bsdf.inputs["Roughness"].default_value = 0.05                # a mirror: blocks and bounces too
+    bake(bpy, all_objects=True, cull=False)
+    assert probe_renders() == before + 1
+    mirror = floor_green()
+    assert {f: getattr(ball, f) for f in flags} == flags
+    assert matte < 0.02 and mirror > 0.1, (matte, mirror)
+
+
 def test_sky_of_an_image_world_is_the_image_itself_not_sampled(bpy_clean, tmp_path):
     """Where the world is an equirectangular image, the probe's sky is that image area-averaged
     (exact: a small sun's energy does not depend on where camera samples land), under what the
