@@ -247,9 +247,6 @@ class ProbeBake:
         return self._renderer.render(origin, hidden=hidden, shadow_only=shadow_only, distance=distance,
                                      height=height, camera_hidden=camera_hidden)
 
-    def owner_visibility(self, ob) -> str:
-        return owner_visibility(ob, self.scene.platelight.probe_owner_shadows)
-
     def map_settings(self, sized_height=None):
         """Map sizes: never larger than the probe; a probe sized to its object on screen
         (``sized_height``) keeps its full height in the specular map (the default 128 would blur a
@@ -261,13 +258,13 @@ class ProbeBake:
         return MapSettings(sampling=self.scene.platelight.sampling, heights=heights)
 
     # ---- hashing
-    def probe_hash(self, ob, origin, maps):
+    def probe_hash(self, ob, origin, maps, owner):
         frame = self.scene.frame_current
         seen = sorted((o.name_full, self._describer.seen_digest(o, frame)) for o in self.scene.objects
                       if o is not ob and o is not self._renderer.camera and renderable(o, self.view_layer)
                       and self._in_range(origin, o))
         return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.heights.get(ob.name),
-                          self.owner_visibility(ob))
+                          owner)
 
     # ---- steps
     def start(self):
@@ -299,7 +296,8 @@ class ProbeBake:
         folder = self.abspath(folder_rel)
         maps = maps_for(ob)
         origin = probe_origin(ob)
-        digest = self.probe_hash(ob, origin, maps)
+        owner = owner_visibility(ob, self.scene.platelight.probe_owner_shadows)
+        digest = self.probe_hash(ob, origin, maps, owner)
         if self.use_cache and layout.is_cached(folder, key_frame, digest, maps):
             self.reused.append((ob.name, frame))
             status = "baked (unchanged)"
@@ -311,8 +309,8 @@ class ProbeBake:
             # parallax corrects the specular/glossy look-ups only: a matte object needs no distances
             wants_distance = any(name != "diffuse" for name in maps)
             height = self.heights.get(ob.name)
-            owner = {OWNER_RENDER_ARGUMENT[self.owner_visibility(ob)]: [ob]}
-            env = self.render_probe(origin, distance=wants_distance, height=height, **owner)
+            placed = {OWNER_RENDER_ARGUMENT[owner]: [ob]}
+            env = self.render_probe(origin, distance=wants_distance, height=height, **placed)
             result = compute_maps(env, self.map_settings(height), which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
