@@ -9,6 +9,11 @@ PROBE_GROUP_PREFIX = "PlateLight Probe "    # + probe folder: the group sampling
 PROBE_NODE = "PlateLight Probe"             # the material's node holding that group
 PROBE_CENTRE_NODE = "PlateLight Probe Centre"   # in a probe group: the bake's centre (parallax)
 PARALLAX_NODE = "PlateLight Parallax"       # in a probe group: 1 = parallax-corrected look-ups
+DIFFUSE_PARALLAX_NODE = "PlateLight Diffuse Parallax"   # in a probe group: 1 = irradiance grid
+GRID_LO_NODE = "PlateLight Grid Low Corner"  # in a probe group: the irradiance grid's box...
+GRID_SCALE_NODE = "PlateLight Grid Scale"    # ... 1 / its size per axis (0 on a flat axis)
+GRID_POINTS_NODE = "PlateLight Grid Points"  # ... points per axis
+GRID_HEIGHT_NODE = "PlateLight Grid Height"  # ... height of each map in the atlas
 TWIN_NODE = "PlateLight Principled Twin"    # in an SBRDF material: what non-camera rays meet
 RAY_SPLIT_NODE = "PlateLight Ray Split"     # max(Is Camera Ray, Emission For All Rays)
 RAY_MIX_NODE = "PlateLight Ray Mix"

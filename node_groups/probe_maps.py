@@ -12,21 +12,26 @@ rule of addon/ibl/maps.map_weights, built here as nodes from the same constants.
 """
 from __future__ import annotations
 
+import math
 import os
 
 import bpy
 
 from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
+from ..addon.ibl import irradiance_grid
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
 from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 3                          # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 4                          # 3: parallax-corrected specular look-ups (distance map)
+                                     # 4: diffuse look-ups from the irradiance grid
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
+GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
+              names.GRID_POINTS_NODE, names.GRID_HEIGHT_NODE)
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
@@ -113,13 +118,15 @@ def bind_images(tree):
     path = bpy.path.abspath(folder) if folder else ""
     for node in tree.nodes:
         name = node.get("platelight_map")
-        if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
+        if node.bl_idname not in ("ShaderNodeTexEnvironment", "ShaderNodeTexImage") or name is None:
             continue
         frame = first if kind == "sequence" else None
         if kind == "missing":
             filename = None
         elif name == DISTANCE_NAME:
             filename = distance_filename(frame)
+        elif name == irradiance_grid.GRID_NAME:
+            filename = irradiance_grid.grid_filename(frame)
         else:
             filename = map_filename(name, frame)
         previous = node.image
@@ -141,30 +148,57 @@ def bind_images(tree):
             user.frame_duration = SEQUENCE_FRAMES
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
-    _bind_parallax(tree, path, kind, first)
+    record = read_record(path, first if kind == "sequence" else None) if kind != "missing" else {}
+    _bind_parallax(tree, record)
+    _bind_grid(tree, record)
 
 
-def _bind_parallax(tree, path, kind, first):
+def _scene_setting(name):
+    scene = getattr(bpy.context, "scene", None)
+    return bool(getattr(getattr(scene, "platelight", None), name, True))
+
+
+def _has_baked(tree, map_name):
+    node = next((n for n in tree.nodes if n.get("platelight_map") == map_name), None)
+    return node is not None and is_baked(node.image)
+
+
+def _bind_parallax(tree, record):
     """The probe's centre (from its bake record) and the parallax switch: on when the scene asks
     for it (scene.platelight.probe_parallax) and the folder has a distance map and a centre."""
     centre_node, switch = tree.nodes.get(CENTRE_NODE), tree.nodes.get(PARALLAX_NODE)
     if centre_node is None or switch is None:
         return
-    record = read_record(path, first if kind == "sequence" else None) if kind != "missing" else {}
     origin = record.get("origin")
-    distance_node = next((n for n in tree.nodes if n.get("platelight_map") == DISTANCE_NAME), None)
-    has_map = distance_node is not None and is_baked(distance_node.image)
     if origin is not None:
         for axis, value in zip("XYZ", origin):
             centre_node.inputs[axis].default_value = float(value)
-    scene = getattr(bpy.context, "scene", None)
-    wanted = bool(getattr(getattr(scene, "platelight", None), "probe_parallax", True))
-    switch.outputs[0].default_value = 1.0 if (wanted and has_map and origin is not None) else 0.0
+    on = _scene_setting("probe_parallax") and _has_baked(tree, DISTANCE_NAME) and origin is not None
+    switch.outputs[0].default_value = 1.0 if on else 0.0
 
 
-def set_parallax(enabled: bool) -> int:
-    """Switch parallax correction in every probe group (the scene setting's update); returns how
-    many groups were touched."""
+def _bind_grid(tree, record):
+    """The irradiance grid's box and shape (from the bake record) and its switch: on when the
+    scene asks for it (scene.platelight.probe_diffuse_parallax) and the folder has a grid."""
+    nodes = [tree.nodes.get(name) for name in GRID_NODES]
+    if any(node is None for node in nodes):
+        return
+    switch, lo_node, scale_node, points_node, height_node = nodes
+    grid = record.get(irradiance_grid.RECORD_KEY)
+    on = _scene_setting("probe_diffuse_parallax") and _has_baked(tree, irradiance_grid.GRID_NAME) \
+        and isinstance(grid, dict)
+    if on:
+        for axis, low, high in zip("XYZ", grid["lo"], grid["hi"]):
+            lo_node.inputs[axis].default_value = float(low)
+            scale_node.inputs[axis].default_value = 1.0 / (high - low) if high > low else 0.0
+        points_node.outputs[0].default_value = float(grid["points"])
+        height_node.outputs[0].default_value = float(grid["height"])
+    switch.outputs[0].default_value = 1.0 if on else 0.0
+
+
+def set_parallax() -> int:
+    """Switch parallax correction (specular and diffuse) in every probe group to the scene's
+    settings (their update); returns how many groups were touched."""
     count = 0
     for tree in bpy.data.node_groups:
         if tree.bl_idname == "ShaderNodeTree" and FOLDER_KEY in tree and PARALLAX_NODE in tree.nodes:
@@ -272,6 +306,67 @@ def _parallax(g, env, direction):
     return g.mix("VECTOR", switch.outputs[0], reflected, corrected)
 
 
+def _irradiance_grid(g, direction):
+    """The diffuse map seen from the shading point: the eight maps of the irradiance grid around
+    it (addon/ibl/irradiance_grid.py: trilinear, atlas_uv) read along ``direction``."""
+    def value(name, default):
+        node = g.node("ShaderNodeValue")
+        node.name = node.label = name
+        node.outputs[0].default_value = default
+        return node.outputs[0]
+
+    def vector(name):
+        node = g.node("ShaderNodeCombineXYZ")
+        node.name = node.label = name
+        return node.outputs["Vector"]
+
+    points = value(names.GRID_POINTS_NODE, float(irradiance_grid.DEFAULT_POINTS))
+    height = value(names.GRID_HEIGHT_NODE, 16.0)
+    position = g.node("ShaderNodeNewGeometry").outputs["Position"]
+    cell = g.vmath("MULTIPLY", g.vmath("SUBTRACT", position, vector(names.GRID_LO_NODE)),
+                   vector(names.GRID_SCALE_NODE))
+    cell = g.vmath("MINIMUM", g.vmath("MAXIMUM", cell, (0.0, 0.0, 0.0)), (1.0, 1.0, 1.0))
+    cell = g.vmath("SCALE", cell, scale=g.math("SUBTRACT", points, 1.0))
+    split = g.node("ShaderNodeSeparateXYZ")
+    g.link(cell, split.inputs["Vector"])
+    last = g.math("SUBTRACT", points, 2.0)
+    lows, fractions = [], []
+    for axis in range(3):
+        low = g.math("MINIMUM", g.math("FLOOR", split.outputs[axis]), last)
+        lows.append(low)
+        fractions.append(g.math("SUBTRACT", split.outputs[axis], low))
+    # the direction's equirect (u, v), as addon/ibl/equirect.dir_to_uv
+    unit = g.node("ShaderNodeSeparateXYZ")
+    g.link(g.vmath("NORMALIZE", direction), unit.inputs["Vector"])
+    x, y, z = unit.outputs
+    u = g.math("ADD", g.math("DIVIDE", g.math("ARCTAN2", g.math("MULTIPLY", y, -1.0), x), 2.0 * math.pi), 0.5)
+    v = g.math("ADD", g.math("DIVIDE", g.math("ARCSINE", z), math.pi), 0.5)
+    pad = float(irradiance_grid.PAD)
+    tile_w = g.math("MULTIPLY_ADD", height, 2.0, 2.0 * pad)
+    atlas_w = g.math("MULTIPLY", g.math("POWER", points, 3.0), tile_w)
+    within_u = g.math("MULTIPLY_ADD", u, g.math("MULTIPLY", height, 2.0), pad)
+    atlas_v = g.math("DIVIDE", g.math("MULTIPLY_ADD", v, height, pad), g.math("ADD", height, 2.0 * pad))
+    total = None
+    for corner in range(8):
+        steps = [(corner >> axis) & 1 for axis in range(3)]
+        index = [g.math("ADD", low, float(step)) for low, step in zip(lows, steps)]
+        tile = g.math("MULTIPLY_ADD", g.math("MULTIPLY_ADD", index[2], points, index[1]), points, index[0])
+        atlas_u = g.math("DIVIDE", g.math("MULTIPLY_ADD", tile, tile_w, within_u), atlas_w)
+        weight = None
+        for f, step in zip(fractions, steps):
+            factor = f if step else g.math("SUBTRACT", 1.0, f)
+            weight = factor if weight is None else g.math("MULTIPLY", weight, factor)
+        uv = g.node("ShaderNodeCombineXYZ")
+        g.link(atlas_u, uv.inputs["X"])
+        g.link(atlas_v, uv.inputs["Y"])
+        image = g.node("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND")
+        image["platelight_map"] = irradiance_grid.GRID_NAME
+        g.link(uv.outputs["Vector"], image.inputs["Vector"])
+        term = g.vmath("SCALE", image.outputs["Color"], scale=weight)
+        total = term if total is None else g.vmath("ADD", total, term)
+    return total
+
+
 def _build(tree):
     g = Graph(tree)
     gin, gout = io_nodes(g)
@@ -297,7 +392,12 @@ def _build(tree):
             total = term if total is None else g.vmath("ADD", total, term)
         return total
 
-    diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], env("diffuse", inp["Diffuse Direction"]))
+    switch = g.node("ShaderNodeValue")
+    switch.name = switch.label = names.DIFFUSE_PARALLAX_NODE
+    switch.outputs[0].default_value = 0.0
+    irradiance = g.mix("VECTOR", switch.outputs[0], env("diffuse", inp["Diffuse Direction"]),
+                       _irradiance_grid(g, inp["Diffuse Direction"]))
+    diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], irradiance)
     specular_direction = _parallax(g, env, inp["Specular Direction"])
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(specular_direction))
     channels = []

@@ -61,7 +61,7 @@ class PlateLightObjectSettings(bpy.types.PropertyGroup):
 def _parallax_changed(settings, context):
     from ..node_groups.probe_maps import set_parallax
 
-    set_parallax(settings.probe_parallax)
+    set_parallax()
 
 
 class PlateLightSceneSettings(bpy.types.PropertyGroup):
@@ -128,6 +128,14 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         description="Follow each reflected ray from the shading point to the surface the probe's "
         "distance map holds (distance impostors), so nearby things reflect where they are; off: "
         "the paper's look-up from the probe's centre",
+        default=True,
+        update=lambda self, context: _parallax_changed(self, context),
+    )
+    probe_diffuse_parallax: BoolProperty(
+        name="Diffuse Parallax",
+        description="Light the diffuse layer from a grid of irradiance maps over the object, each "
+        "seen from its own point through the probe's distance map, so the lower half of a ball on "
+        "a floor sees that floor as it does; off: the paper's irradiance map at the probe's centre",
         default=True,
         update=lambda self, context: _parallax_changed(self, context),
     )

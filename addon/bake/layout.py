@@ -11,6 +11,7 @@ import tempfile
 from ..errors import PlateLightError
 from ..fileio import write_json_atomic
 from ..ibl.distance import distance_filename
+from ..ibl.irradiance_grid import grid_filename
 from ..ibl.maps import MAP_NAMES, map_filename
 
 WORLD_FOLDER = "_world"
@@ -81,7 +82,7 @@ def remove_single_frame(folder: str) -> list[str]:
     ``diffuse.exr``... and ``bake.json``, or the binding (which prefers single files) would keep
     showing the old static maps instead of the new sequence. Returns the files removed."""
     removed = []
-    for filename in [map_filename(n, None) for n in MAP_NAMES] + [distance_filename(None),
+    for filename in [map_filename(n, None) for n in MAP_NAMES] + [distance_filename(None), grid_filename(None),
                                                                   record_filename(None)]:
         path = os.path.join(folder, filename)
         if os.path.isfile(path):

@@ -57,6 +57,12 @@ def needs_sharp_specular(materials: list[Lobes]) -> bool:
                for lobes in materials)
 
 
+def wants_irradiance_grid(maps, diffuse_parallax: bool) -> bool:
+    """Does a probe bake the diffuse irradiance grid (addon/ibl/irradiance_grid.py)? Only when
+    the object reads the diffuse map and the scene asks for diffuse parallax."""
+    return diffuse_parallax and "diffuse" in maps
+
+
 # How a probe sees its own owner (operators/bake/job.py renders accordingly).
 OWNER_HIDDEN = "hidden"        # the paper: removed, so the floor under a ball is sunlit
 OWNER_SHADOWS = "shadows"      # invisible to every ray but shadow rays: it shadows the floor

@@ -23,7 +23,9 @@ from ...addon.bake.frames import sample_frames
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
 from ...addon.ibl import distance as distance_maps
-from ...addon.ibl.maps import DEFAULT_HEIGHTS, MAP_NAMES, MapSettings, compute_maps, write_maps
+from ...addon.ibl import irradiance_grid
+from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, MapSettings, compute_maps,
+                               prepare_environment, write_maps)
 from ..common import GEOMETRY_TYPES
 from ..phantom_surface import apply_phantom_surfaces
 from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin,
@@ -306,24 +308,31 @@ class ProbeBake:
             ob.platelight.probe_status = "stale"
             return
         else:
-            # parallax corrects the specular/glossy look-ups only: a matte object needs no distances
-            wants_distance = any(name != "diffuse" for name in maps)
+            # the glossy look-ups and the diffuse grid both see the scene through the distance map
+            wants_grid = needs.wants_irradiance_grid(maps, self.scene.platelight.probe_diffuse_parallax)
+            wants_distance = wants_grid or any(name != "diffuse" for name in maps)
             height = self.heights.get(ob.name)
             placed = {OWNER_RENDER_ARGUMENT[owner]: [ob]}
             env = self.render_probe(origin, distance=wants_distance, height=height, **placed)
-            result = compute_maps(env, self.map_settings(height), which=maps)
+            settings = self.map_settings(height)
+            result = compute_maps(env, settings, which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
+            grid = {}
             if wants_distance:
+                points = distance_render.surface_points(ob, self.context.evaluated_depsgraph_get())
                 self.warnings.extend(f"{ob.name}: {w}" for w in distance_render.write_probe_distance(
-                    self._renderer.distance, folder, key_frame,
-                    distance_render.surface_points(ob, self.context.evaluated_depsgraph_get()) - origin))
+                    self._renderer.distance, folder, key_frame, points - origin))
             else:
                 distance_maps.remove_distance(folder, key_frame)
+            if wants_grid:
+                grid = self._write_irradiance_grid(env, points, origin, settings, folder, key_frame)
+            else:
+                irradiance_grid.remove_grid(folder, key_frame)
             layout.remove_other_maps(folder, key_frame, keep=maps)
             layout.write_record(folder, key_frame, digest, maps, object=ob.name, scene_frame=frame,
                                 origin=[float(x) for x in origin],
-                                probe_size=[int(env.shape[1]), int(env.shape[0])])
+                                probe_size=[int(env.shape[1]), int(env.shape[0])], **grid)
             self.baked.append((ob.name, frame))
             status = "baked"
         if self.check_only:
@@ -338,6 +347,21 @@ class ProbeBake:
         self._note_bound(ob, status == "baked")
         ob.platelight.probe_hash = digest
         ob.platelight.probe_status = status if self.static else f"{status} (frames {self.frames[0]}-{self.frames[-1]})"
+
+    def _write_irradiance_grid(self, env, points, origin, settings, folder, key_frame):
+        """The diffuse maps of a grid of points over the object's bounding box, seen through its
+        probe's distance map (addon/ibl/irradiance_grid.py), as one atlas; returns what the
+        record keeps of it (the shader's box and grid size)."""
+        lo, hi = irradiance_grid.grid_box(points.min(axis=0), points.max(axis=0))
+        count = irradiance_grid.DEFAULT_POINTS
+        offsets = irradiance_grid.grid_points(lo, hi, count) - origin
+        radiance, _ = prepare_environment(env)
+        height = int(settings.heights["diffuse"])
+        maps = irradiance_grid.irradiance_maps(radiance, self._renderer.distance[0], offsets, height,
+                                               DIFFUSE_LMAX_EXACT)
+        irradiance_grid.write_grid(folder, irradiance_grid.atlas(maps), key_frame)
+        return {irradiance_grid.RECORD_KEY: {"lo": [float(x) for x in lo], "hi": [float(x) for x in hi],
+                                             "points": count, "height": height}}
 
     def world_folder(self):
         return self.folder_for(layout.WORLD_FOLDER)

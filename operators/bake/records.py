@@ -8,8 +8,9 @@ import numpy as np
 
 from ...addon import names
 from ...addon.bake.hashing import content_hash
-from ...addon.bake.needs import OWNER_INDIRECT
+from ...addon.bake.needs import OWNER_INDIRECT, wants_irradiance_grid
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
+from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
 from ...addon.ibl.maps import map_filename
 
 
@@ -22,8 +23,11 @@ def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner
     sized = {"sized_height": sized_height} if sized_height else {}     # older records stay valid
     # An owner seen by the probe's indirect rays makes another probe; the older modes hash as before.
     indirect = {"owner": owner} if owner == OWNER_INDIRECT else {}
+    # A probe with an irradiance grid is another bake; one without hashes as before.
+    wants_grid = wants_irradiance_grid(maps, settings.probe_diffuse_parallax)
+    grid = {"irradiance_grid": GRID_VERSION} if wants_grid else {}
     return content_hash({
-        **sized, **indirect,
+        **sized, **indirect, **grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
         "distance": DISTANCE_VERSION,
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,

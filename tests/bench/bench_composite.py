@@ -14,9 +14,10 @@ PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
 PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
 PLATELIGHT_BENCH_EXTRA=layered (the layered route too), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
 subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
-2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_ROWS (the rows file's name in bench_out/), PLATELIGHT_BENCH_KEEP_ROWS=1
-(re-run a subset: the rows file's other rows stay, a re-run row replaces its old one, and the
-report covers them all).
+2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_ROWS (the rows file's name beside the report; default <report>_rows.json,
+published with it so anyone can re-plot or extend it), PLATELIGHT_BENCH_KEEP_ROWS=1 (re-run a
+subset: the rows file's other rows stay, a re-run row replaces its old one, and the report covers
+them all).
 """
 from __future__ import annotations
 
@@ -153,6 +154,22 @@ def render(bpy, scene, path):
     t0 = time.perf_counter()
     bpy.ops.render.render(write_still=True)
     return read_exr(path), time.perf_counter() - t0
+
+
+def truth_and_plate(bpy, hdri_path, material, folder, samples, camera=None, box=None):
+    """One view's path-traced truth (sphere there) and plate (sphere absent) at ``samples`` spp,
+    no denoiser, Filter Glossy 0 (Cycles' 1.0 biases mirrors); written to folder/truth.exr and
+    folder/plate.exr. The scene is left built (without the sphere hidden) for masks()."""
+    images = {}
+    for name, with_sphere in (("truth", True), ("plate", False)):
+        scene, _floor, sphere = build(bpy, hdri_path, material, camera, box)
+        scene.cycles.samples = samples
+        scene.cycles.use_denoising = False
+        scene.cycles.blur_glossy = 0.0
+        sphere.hide_render = not with_sphere
+        images[name], _ = render(bpy, scene, pathlib.Path(folder) / f"{name}.exr")
+    build(bpy, hdri_path, material, camera, box)
+    return images["truth"], images["plate"]
 
 
 def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, camera=None, box=None):
@@ -436,7 +453,8 @@ def main(out_dir: pathlib.Path) -> None:
     hdri_path = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{HDRI}.exr")
     folder = CACHE / (SIZE if DEVICE == "CPU" else f"{SIZE}_{DEVICE.lower()}")
     only = os.environ.get("PLATELIGHT_BENCH_SCENES")
-    rows_file = folder / os.environ.get("PLATELIGHT_BENCH_ROWS", "rows.json")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows_file = out_dir / os.environ.get("PLATELIGHT_BENCH_ROWS", f"{report_stem()}_rows.json")
     rows = json.loads(rows_file.read_text()) if os.environ.get("PLATELIGHT_BENCH_KEEP_ROWS") \
         and rows_file.exists() else []
     for name, (material_name, box) in SHOT_SCENES.items():
@@ -523,6 +541,12 @@ def equal_time_and_error(rows, material, route, key):
 LOAD_NOTE = os.environ.get("PLATELIGHT_BENCH_LOAD_NOTE", "")
 
 
+def report_stem() -> str:
+    """The report's file name without suffix: composite[_<W>x<H>][_gpu]."""
+    stem = "composite" if SIZE == "480x270" else f"composite_{SIZE}"
+    return stem if DEVICE == "CPU" else f"{stem}_{DEVICE.lower()}"
+
+
 def write_report(out_dir, rows):
     import matplotlib
 
@@ -530,9 +554,7 @@ def write_report(out_dir, rows):
     import matplotlib.pyplot as plt
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    stem = "composite" if SIZE == "480x270" else f"composite_{SIZE}"
-    if DEVICE != "CPU":
-        stem += f"_{DEVICE.lower()}"
+    stem = report_stem()
     lines = [
         f"# Compositing benchmark at {SIZE.replace('x', '×')} (issue 11)",
         "",

@@ -154,16 +154,21 @@ def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
         ob.data.materials.append(mat)
     bake(bpy, all_objects=True, cull=False)
     names = lambda n: sorted(p.name for p in maps_folder(tmp_path, n).glob("*.exr"))
-    assert names("Matte") == ["diffuse.exr"]          # no glossy look-ups: no distance map
+    # the diffuse look-up reads the irradiance grid, seen through the distance map
+    assert names("Matte") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr"]
     assert names("Mirror") == ["distance.exr", "specular.exr"]
-    assert names("Plain") == ["diffuse.exr", "distance.exr", "glossy1.exr", "glossy2.exr", "specular.exr"]
+    assert names("Plain") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr", "glossy1.exr", "glossy2.exr", "specular.exr"]
     # The mirror turns matte: the next bake computes only the diffuse map and drops the old one.
     node = mirror.data.materials[0].node_tree.nodes["Group"]
     node.inputs["Diffuse Albedo"].default_value = (0.5, 0.5, 0.5, 1)
     node.inputs["Specular Albedo"].default_value = (0, 0, 0, 1)
     node.inputs["Fresnel Falloff"].default_value = 0.0
     bake(bpy, all_objects=True, cull=False)
-    assert names("Mirror") == ["diffuse.exr"]          # its distance map went with the specular
+    assert names("Mirror") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr"]
+    # Diffuse parallax off: the paper's look-up needs neither grid nor distances.
+    bpy.context.scene.platelight.probe_diffuse_parallax = False
+    bake(bpy, all_objects=True, cull=False)
+    assert names("Mirror") == ["diffuse.exr"] == names("Matte")
 
 
 def _fake_sbrdf_group(bpy):

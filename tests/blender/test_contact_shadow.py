@@ -27,15 +27,7 @@ def test_resting_sphere_keeps_its_contact_shadow(bpy_clean, tmp_path, studio_hdr
     bench = bench_module()
     hdri = str(studio_hdris["city"])
     material = bench.MATERIALS["diffuse"]
-    renders = {}
-    for name, with_sphere in (("truth", True), ("plate", False)):
-        scene, _floor, sphere = bench.build(bpy, hdri, material, bench.LOW_CAMERA)
-        scene.cycles.samples = 256
-        scene.cycles.use_denoising = False
-        sphere.hide_render = not with_sphere
-        renders[name], _ = bench.render(bpy, scene, tmp_path / f"{name}.exr")
-    truth, plate = renders["truth"], renders["plate"]
-    bench.build(bpy, hdri, material, bench.LOW_CAMERA)
+    truth, plate = bench.truth_and_plate(bpy, hdri, material, tmp_path, 256, bench.LOW_CAMERA)
     contact = bench.contact_mask(0.2)
     _obj, shadow = bench.masks(truth, plate)
     assert contact.sum() > 100 and shadow.sum() > 1000

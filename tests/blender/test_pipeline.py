@@ -215,8 +215,10 @@ def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     scene.platelight.probe_auto_size = False       # every map at Probe Height (test_probe_size.py sizes)
     scene.platelight.probe_samples = 4
     # these tests check the render against the paper's look-ups from the probe centre (the numpy
-    # reference above); parallax-corrected look-ups have their own test (test_parallax.py)
+    # reference above); parallax-corrected look-ups, specular and diffuse, have their own tests
+    # (test_parallax.py, test_irradiance_grid.py)
     scene.platelight.probe_parallax = False
+    scene.platelight.probe_diffuse_parallax = False
     scene.frame_set(1)
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
     return scene, sphere, cube, plane
@@ -561,3 +563,69 @@ def test_diffuse_object_gets_only_the_diffuse_map(bpy_clean, tmp_path, studio_hd
         return np.array([0.7, 0.5, 0.3]) * _lookup(maps["diffuse"], normals), {"N": (normals, height)}
 
     assert_matches(image, reference, N)
+
+
+def _image_lookup(img, x, y):
+    """Bilinear Image Texture lookup (Linear, Extend) of an EXR array (top row first) at image
+    coordinates (x, y) in [0, 1], y up: Blender's texel centres at (i + 0.5) / size."""
+    h, w, _ = img.shape
+    px, py = x * w - 0.5, (1.0 - y) * h - 0.5
+    x0, y0 = np.floor(px).astype(int), np.floor(py).astype(int)
+    fx, fy = (px - x0)[..., None], (py - y0)[..., None]
+    c0, c1 = np.clip(x0, 0, w - 1), np.clip(x0 + 1, 0, w - 1)
+    r0, r1 = np.clip(y0, 0, h - 1), np.clip(y0 + 1, 0, h - 1)
+    return ((img[r0, c0] * (1 - fx) + img[r0, c1] * fx) * (1 - fy)
+            + (img[r1, c0] * (1 - fx) + img[r1, c1] * fx) * fy)
+
+
+def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path, studio_hdris):
+    """Diffuse Parallax on: the bake writes the grid atlas and its record, and the render is
+    rho_d times the trilinear blend of the eight grid maps around the shading point, each read
+    along N from its tile of the atlas (numpy from the record: irradiance_grid.trilinear and
+    atlas_uv, and an Image Texture's bilinear filter written here)."""
+    import json
+
+    from platelight.addon.exr_io import read_exr
+    from platelight.addon.ibl import irradiance_grid as ig
+
+    bpy = bpy_clean
+    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["sunset"])
+    scene.platelight.probe_diffuse_parallax = True
+    select_only(bpy, sphere)
+    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
+    node = sphere.active_material.node_tree.nodes["PlateLight SBRDF"]
+    albedo = (0.7, 0.5, 0.3)
+    node.inputs["Diffuse Albedo"].default_value = (*albedo, 1.0)
+    node.inputs["Specular Albedo"].default_value = (0.0, 0.0, 0.0, 1.0)
+    node.inputs["Fresnel Falloff"].default_value = 0.0
+    node.inputs["Glossiness"].default_value = 0.0
+    assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
+    folder = bpy.path.abspath(sphere.platelight.probe_dir)
+    assert sorted(f for f in os.listdir(folder) if f.endswith(".exr")) == \
+        ["diffuse.exr", ig.grid_filename(), "distance.exr"]
+    grid = json.loads(open(os.path.join(folder, "bake.json")).read())[ig.RECORD_KEY]
+    atlas = read_exr(os.path.join(folder, ig.grid_filename()), "RGB").astype(np.float64)
+    n, height = grid["points"], grid["height"]
+    assert n == ig.DEFAULT_POINTS and atlas.shape == (height + 2 * ig.PAD, n ** 3 * (2 * height + 2 * ig.PAD), 3)
+    # the box is the unit sphere's, inset
+    np.testing.assert_allclose(grid["hi"], [1 - ig.INSET * 2] * 3, atol=0.01)
+    np.testing.assert_allclose(grid["lo"], [-1 + ig.INSET * 2] * 3, atol=0.01)
+
+    def reference(normals):          # the unit sphere at the origin: the shading point is N
+        points = np.nan_to_num(normals)
+        tiles, weights = ig.trilinear(np.array(grid["lo"]), np.array(grid["hi"]), n, points)
+        d = _unit(points + (points == 0).all(axis=-1, keepdims=True))
+        u = np.arctan2(-d[..., 1], d[..., 0]) / (2 * np.pi) + 0.5
+        v = np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])) / np.pi + 0.5
+        total = 0.0
+        for k in range(8):
+            x, y = ig.atlas_uv(tiles[..., k], u, v, n ** 3, height)
+            total = total + weights[..., k:k + 1] * _image_lookup(atlas, x, y)
+        return np.array(albedo) * total, {"N": (normals, height)}
+
+    image = render(bpy, tmp_path, "grid.exr")
+    assert_matches(image, reference, sphere_normals())
+    # not the paper's centre look-up: the lower half sees the red floor from close by
+    centre = np.array(albedo) * _lookup(read_maps(bpy, sphere)["diffuse"], sphere_normals())
+    inside = np.isfinite(centre[..., 0])
+    assert np.abs(image[..., :3] - centre)[inside].max() > 0.02
