@@ -26,8 +26,9 @@ from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 4                          # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 5                          # 3: parallax-corrected specular look-ups (distance map)
                                      # 4: diffuse look-ups from the irradiance grid
+                                     # 5: the grid's atlas read by Environment Textures (EEVEE)
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
@@ -118,7 +119,7 @@ def bind_images(tree):
     path = bpy.path.abspath(folder) if folder else ""
     for node in tree.nodes:
         name = node.get("platelight_map")
-        if node.bl_idname not in ("ShaderNodeTexEnvironment", "ShaderNodeTexImage") or name is None:
+        if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
             continue
         frame = first if kind == "sequence" else None
         if kind == "missing":
@@ -346,6 +347,12 @@ def _irradiance_grid(g, direction):
     atlas_w = g.math("MULTIPLY", g.math("POWER", points, 3.0), tile_w)
     within_u = g.math("MULTIPLY_ADD", u, g.math("MULTIPLY", height, 2.0), pad)
     atlas_v = g.math("DIVIDE", g.math("MULTIPLY_ADD", v, height, pad), g.math("ADD", height, 2.0 * pad))
+    # The atlas is read by Environment Texture nodes along the direction whose equirect (u, v) is
+    # the atlas position: EEVEE samples an Image Texture with mipmaps chosen from screen-space
+    # derivatives, which jump where the tile index changes (grid lines across the object:
+    # 35.0 -> 28.5 dB measured), while its Environment Texture reads the full-resolution level.
+    elevation = g.math("MULTIPLY", g.math("SUBTRACT", atlas_v, 0.5), math.pi)
+    cos_el, sin_el = g.math("COSINE", elevation), g.math("SINE", elevation)
     total = None
     for corner in range(8):
         steps = [(corner >> axis) & 1 for axis in range(3)]
@@ -356,12 +363,15 @@ def _irradiance_grid(g, direction):
         for f, step in zip(fractions, steps):
             factor = f if step else g.math("SUBTRACT", 1.0, f)
             weight = factor if weight is None else g.math("MULTIPLY", weight, factor)
-        uv = g.node("ShaderNodeCombineXYZ")
-        g.link(atlas_u, uv.inputs["X"])
-        g.link(atlas_v, uv.inputs["Y"])
-        image = g.node("ShaderNodeTexImage", interpolation="Linear", extension="EXTEND")
+        # equirect (u, v) -> direction: azimuth 2 pi (0.5 - u), elevation pi (v - 0.5)
+        azimuth = g.math("MULTIPLY", g.math("SUBTRACT", 0.5, atlas_u), 2.0 * math.pi)
+        look = g.node("ShaderNodeCombineXYZ")
+        g.link(g.math("MULTIPLY", cos_el, g.math("COSINE", azimuth)), look.inputs["X"])
+        g.link(g.math("MULTIPLY", cos_el, g.math("SINE", azimuth)), look.inputs["Y"])
+        g.link(sin_el, look.inputs["Z"])
+        image = g.node("ShaderNodeTexEnvironment", interpolation="Linear")
         image["platelight_map"] = irradiance_grid.GRID_NAME
-        g.link(uv.outputs["Vector"], image.inputs["Vector"])
+        g.link(look.outputs["Vector"], image.inputs["Vector"])
         term = g.vmath("SCALE", image.outputs["Color"], scale=weight)
         total = term if total is None else g.vmath("ADD", total, term)
     return total
