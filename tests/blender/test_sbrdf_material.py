@@ -10,9 +10,14 @@ import pytest
 
 import sbrdf_scene as sc
 from platelight.addon import names
+from platelight.addon.ibl.distance import DISTANCE_NAME
+from platelight.addon.ibl.irradiance_grid import GRID_NAME
 from platelight.addon.material.params import PARAMETERS
 from platelight.addon.material.presets import PRESETS, preset_label, preset_params
 from support import compat
+
+
+LOOKUP_FILES = (DISTANCE_NAME, GRID_NAME)     # what the parallax look-ups read beside the four maps
 
 
 def _sm():
@@ -55,7 +60,7 @@ def test_apply_sbrdf_converts_principled_and_binds_probe(bpy_clean, tmp_path):
     assert params.emission_strength == pytest.approx(2.0)
     probe = sm.probe_node(mat).node_tree
     envs = [n for n in probe.nodes if n.bl_idname == "ShaderNodeTexEnvironment"
-            and n.get("platelight_map") != "distance"]           # the parallax search has its own
+            and n.get("platelight_map") not in LOOKUP_FILES]     # the parallax look-ups have their own
     assert len(envs) == 17 and all(n.image is not None for n in envs)
     assert {n.image.name for n in envs} == {f"{m}.exr" for m in sc.MAP_HEIGHTS}
     assert all(n.interpolation == "Linear" for n in envs)
@@ -93,7 +98,7 @@ def test_missing_maps_fall_back_to_world_maps(bpy_clean, tmp_path):
     assert "using the world maps" in status
     assert mat["platelight_probe_dir"] == folder
     envs = [n for n in sm.probe_node(mat).node_tree.nodes
-            if n.bl_idname == "ShaderNodeTexEnvironment" and n.get("platelight_map") != "distance"]
+            if n.bl_idname == "ShaderNodeTexEnvironment" and n.get("platelight_map") not in LOOKUP_FILES]
     assert all(n.image is not None and "_world" in n.image.filepath for n in envs)
     # Once the object's own maps exist, a refresh/apply binds them.
     sc.write_maps(tmp_path / "not_baked", sc.synthetic_maps())
@@ -111,7 +116,7 @@ def test_image_sequence_maps(bpy_clean, tmp_path):
     sm = _sm()
     mat = sm.apply_sbrdf_material(ob)
     envs = [n for n in sm.probe_node(mat).node_tree.nodes
-            if n.bl_idname == "ShaderNodeTexEnvironment" and n.get("platelight_map") != "distance"]
+            if n.bl_idname == "ShaderNodeTexEnvironment" and n.get("platelight_map") not in LOOKUP_FILES]
     assert all(n.image.source == "SEQUENCE" for n in envs)
     # frame F reads <map>_F.exr, independent of which frames existed when the material was bound
     assert all(n.image_user.frame_start == 1 and n.image_user.frame_offset == 0
