@@ -96,3 +96,11 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> None:
 
 def write_json_atomic(path: str | os.PathLike, data) -> None:
     write_text_atomic(path, json.dumps(data, indent=1) + "\n")
+
+
+def remove_if_present(path: str | os.PathLike) -> None:
+    """Remove a file the product wrote and no longer wants; a file already gone is fine."""
+    try:
+        os.remove(path)
+    except FileNotFoundError:
+        pass

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import PlateLightError
 from ..exr_io import write_exr
+from ..fileio import remove_if_present
 from .equirect import dir_to_uv
 
 DISTANCE_NAME = "distance"
@@ -108,10 +109,7 @@ def write_distance(folder, distance: np.ndarray, frame: int | None = None) -> st
 
 def remove_distance(folder, frame: int | None = None) -> None:
     """Remove a distance map no longer wanted (the object's material became matte)."""
-    try:
-        os.remove(os.path.join(os.fspath(folder), distance_filename(frame)))
-    except FileNotFoundError:
-        pass
+    remove_if_present(os.path.join(os.fspath(folder), distance_filename(frame)))
 
 
 def _equirect_lookup(distance: np.ndarray, directions: np.ndarray) -> np.ndarray:

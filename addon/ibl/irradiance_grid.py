@@ -31,6 +31,7 @@ import os
 import numpy as np
 
 from ..exr_io import write_exr
+from ..fileio import remove_if_present
 from . import sh
 from .distance import FAR, _equirect_lookup, parallax_directions
 from .equirect import dir_to_uv, downsample_area, sample_bilinear, texel_directions
@@ -156,7 +157,5 @@ def write_grid(folder, image: np.ndarray, frame: int | None = None) -> str:
 
 
 def remove_grid(folder, frame: int | None = None) -> None:
-    try:
-        os.remove(os.path.join(os.fspath(folder), grid_filename(frame)))
-    except FileNotFoundError:
-        pass
+    """Remove a grid no longer wanted (the object turned metallic, or Diffuse Parallax off)."""
+    remove_if_present(os.path.join(os.fspath(folder), grid_filename(frame)))
