@@ -151,7 +151,7 @@ def bind_images(tree):
     tree["platelight_maps"] = kind
     record = read_record(path, first if kind == "sequence" else None) if kind != "missing" else {}
     _bind_parallax(tree, record)
-    _bind_grid(tree, record)
+    _bind_grid(tree, record, moving=kind == "sequence" and _grid_moves(path))
 
 
 def _scene_setting(name):
@@ -178,16 +178,29 @@ def _bind_parallax(tree, record):
     switch.outputs[0].default_value = 1.0 if on else 0.0
 
 
-def _bind_grid(tree, record):
+def _grid_moves(path) -> bool:
+    """Does the irradiance grid's box change over a sequence's frames (a moving object)?"""
+    boxes = set()
+    for frame in _sequence_frames(path).get("diffuse", []):
+        grid = read_record(path, frame).get(irradiance_grid.RECORD_KEY)
+        if isinstance(grid, dict):
+            boxes.add(tuple(round(float(v), 5) for v in [*grid["lo"], *grid["hi"]]))
+    return len(boxes) > 1
+
+
+def _bind_grid(tree, record, moving=False):
     """The irradiance grid's box and shape (from the bake record) and its switch: on when the
-    scene asks for it (scene.platelight.probe_diffuse_parallax) and the folder has a grid."""
+    scene asks for it (scene.platelight.probe_diffuse_parallax) and the folder has a grid. The
+    group holds one box (the first frame's), so an object that moves over a baked sequence
+    (``moving``) reads the paper's diffuse map of each frame instead: a box left behind would
+    clamp every shading point to its far face."""
     nodes = [tree.nodes.get(name) for name in GRID_NODES]
     if any(node is None for node in nodes):
         return
     switch, lo_node, scale_node, points_node, height_node = nodes
     grid = record.get(irradiance_grid.RECORD_KEY)
     on = _scene_setting("probe_diffuse_parallax") and _has_baked(tree, irradiance_grid.GRID_NAME) \
-        and isinstance(grid, dict)
+        and isinstance(grid, dict) and not moving
     if on:
         for axis, low, high in zip("XYZ", grid["lo"], grid["hi"]):
             lo_node.inputs[axis].default_value = float(low)

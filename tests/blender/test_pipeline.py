@@ -629,3 +629,32 @@ def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path,
     centre = np.array(albedo) * _lookup(read_maps(bpy, sphere)["diffuse"], sphere_normals())
     inside = np.isfinite(centre[..., 0])
     assert np.abs(image[..., :3] - centre)[inside].max() > 0.02
+
+
+def test_a_moving_object_reads_each_frames_centre_map_instead_of_the_grid(bpy_clean, tmp_path, studio_hdris):
+    """The probe group holds one grid box (the first frame's): over a baked sequence in which the
+    object moves, its diffuse look-up falls back to each frame's own centre map (the switch is
+    off); a still object in a sequence keeps the grid."""
+    from platelight.addon import names as pl_names
+
+    bpy = bpy_clean
+    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["sunset"], cube_enabled=False)
+    scene.platelight.probe_diffuse_parallax = True
+    select_only(bpy, sphere)
+    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
+    node = sphere.active_material.node_tree.nodes["PlateLight SBRDF"]
+    node.inputs["Specular Albedo"].default_value = (0.0, 0.0, 0.0, 1.0)
+    node.inputs["Fresnel Falloff"].default_value = 0.0
+
+    def grid_switch():
+        group = bpy.data.node_groups[pl_names.PROBE_GROUP_PREFIX + "Sphere"]
+        return group.nodes[pl_names.DIFFUSE_PARALLAX_NODE].outputs[0].default_value
+
+    assert bpy.ops.platelight.bake_probes(all_objects=True, frame_start=1, frame_end=2) == {"FINISHED"}
+    assert grid_switch() == 1.0                                   # still: one box serves
+    sphere.location = (0.0, 0.0, 0.0)
+    sphere.keyframe_insert("location", frame=1)
+    sphere.location = (0.6, 0.0, 0.0)
+    sphere.keyframe_insert("location", frame=2)
+    assert bpy.ops.platelight.bake_probes(all_objects=True, frame_start=1, frame_end=2) == {"FINISHED"}
+    assert grid_switch() == 0.0                                   # moving: each frame's own map
