@@ -3,6 +3,8 @@ probe's inputs (stored in its record by addon/bake/layout.py; an unchanged hash 
 render), the hash of the world's maps, and packing map files into the .blend."""
 from __future__ import annotations
 
+import os
+
 import bpy
 import numpy as np
 
@@ -10,7 +12,9 @@ from ...addon import names
 from ...addon.bake.hashing import content_hash
 from ...addon.bake.needs import OWNER_INDIRECT, wants_irradiance_grid
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
+from ...addon.ibl.distance import distance_filename
 from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
+from ...addon.ibl.irradiance_grid import grid_filename
 from ...addon.ibl.maps import map_filename
 
 
@@ -54,9 +58,13 @@ def world_maps_hash(scene, world_digest, image, map_settings):
 
 
 def pack_maps(folder_rel, frame, maps, refresh):
-    """Pack the map files of one probe folder (and frame) into the .blend."""
-    for name in maps:
-        filename = map_filename(name, frame)
+    """Pack the map files of one probe folder (and frame) into the .blend, with the parallax
+    look-ups' distance map and irradiance grid where the bake wrote them (a farm node without
+    the folder would read them black while the group's switches stay on)."""
+    filenames = [map_filename(name, frame) for name in maps]
+    filenames += [f for f in (distance_filename(frame), grid_filename(frame))
+                  if os.path.isfile(bpy.path.abspath(folder_rel + f))]
+    for filename in filenames:
         label = f"{names.PACKED_MAP_PREFIX}{folder_rel.rstrip('/').rsplit('/', 1)[-1]}/{filename}"
         pack_map(folder_rel + filename, label, refresh)
 

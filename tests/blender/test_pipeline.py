@@ -658,3 +658,32 @@ def test_a_moving_object_reads_each_frames_centre_map_instead_of_the_grid(bpy_cl
     sphere.keyframe_insert("location", frame=2)
     assert bpy.ops.platelight.bake_probes(all_objects=True, frame_start=1, frame_end=2) == {"FINISHED"}
     assert grid_switch() == 0.0                                   # moving: each frame's own map
+
+
+def test_packed_parallax_look_ups_render_after_the_blend_moves(bpy_clean, tmp_path, studio_hdris):
+    """Pack Maps with both parallax corrections on: the distance map and the irradiance grid
+    travel in the .blend too, so a farm node without the maps folder renders what the
+    workstation does (unpacked, the grid would read black with its switch on)."""
+    import shutil
+
+    bpy = bpy_clean
+    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["city"])
+    scene.platelight.pack_maps = True
+    scene.platelight.probe_parallax = True
+    scene.platelight.probe_diffuse_parallax = True
+    select_only(bpy, sphere)
+    assert bpy.ops.platelight.apply_sbrdf(preset="marble") == {"FINISHED"}
+    assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
+    packed = {im.name.rsplit("/", 1)[-1] for im in bpy.data.images if im.packed_file is not None}
+    assert {"diffuse_grid.exr", "distance.exr"} <= packed
+    here = render(bpy, tmp_path, "here.exr")
+    bpy.ops.wm.save_mainfile()
+    farm = tmp_path / "farm"
+    farm.mkdir()
+    shutil.copy(tmp_path / "shot.blend", farm / "shot.blend")
+    shutil.copy(tmp_path / "world.exr", farm / "world.exr")
+    bpy.ops.wm.open_mainfile(filepath=str(farm / "shot.blend"))
+    assert not (farm / "platelight_maps").exists()
+    there = render(bpy, farm, "farm.exr")
+    inside = np.isfinite(sphere_normals()[..., 0])
+    assert np.abs(here - there)[inside].max() < 1e-5
