@@ -390,14 +390,16 @@ def test_pack_maps_into_the_blend_without_duplicates(bpy_clean, tmp_path):
     lamp = add_sphere(bpy, "Lamp", (2, 0, 0), enabled=False, color=(0, 0, 0), emission=(3, 3, 3))
     bake(bpy, all_objects=True, cull=False)
     images = {im.name: im for im in bpy.data.images if im.name.startswith("PlateLight ")}
-    assert sorted(images) == [f"PlateLight Sphere/{n}.exr" for n in ("diffuse", "glossy1", "glossy2", "specular")]
+    # the four maps and the parallax look-ups' files
+    assert sorted(images) == [f"PlateLight Sphere/{n}.exr" for n in
+                              ("diffuse", "diffuse_grid", "distance", "glossy1", "glossy2", "specular")]
     assert all(im.packed_file is not None for im in images.values())
     assert images["PlateLight Sphere/diffuse.exr"].filepath == ob.platelight.probe_dir + "diffuse.exr"
 
     lamp.location.x = -2                       # changes the probe: re-bake re-packs in place
     bake(bpy, all_objects=True, cull=False)
     again = [im for im in bpy.data.images if im.name.startswith("PlateLight ")]
-    assert len(again) == 4 and len(bpy.data.images) == len(images)
+    assert len(again) == 6 and len(bpy.data.images) == len(images)
     spec = images["PlateLight Sphere/specular.exr"]
     packed = np.array(spec.pixels[:], dtype=np.float32).reshape(spec.size[1], spec.size[0], 4)[::-1, :, :3]
     np.testing.assert_allclose(packed, read_map(tmp_path, "Sphere", "specular"), rtol=1e-6, atol=1e-7)
