@@ -240,6 +240,21 @@ def render(bpy, tmp_path, name):
     return read_exr(tmp_path / name, "RGBA").astype(np.float64)
 
 
+def open_on_farm(bpy, tmp_path):
+    """Save the shot and open a copy of it (and its world image) in tmp_path/farm, where no maps
+    folder exists, as a farm node would; returns that folder."""
+    import shutil
+
+    bpy.ops.wm.save_mainfile()
+    farm = tmp_path / "farm"
+    farm.mkdir()
+    shutil.copy(tmp_path / "shot.blend", farm / "shot.blend")
+    shutil.copy(tmp_path / "world.exr", farm / "world.exr")
+    bpy.ops.wm.open_mainfile(filepath=str(farm / "shot.blend"))
+    assert not (farm / "platelight_maps").exists()
+    return farm
+
+
 def sbrdf_params(bpy, ob):
     from dataclasses import asdict
 
@@ -518,8 +533,6 @@ def test_world_only_object_shares_the_world_maps(bpy_clean, tmp_path, studio_hdr
 
 def test_packed_maps_render_after_the_blend_moves(bpy_clean, tmp_path, studio_hdris):
     """Pack Maps on: the .blend alone (no maps folder next to it) renders the same on a farm node."""
-    import shutil
-
     bpy = bpy_clean
     scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["city"])
     scene.platelight.pack_maps = True
@@ -527,13 +540,7 @@ def test_packed_maps_render_after_the_blend_moves(bpy_clean, tmp_path, studio_hd
     assert bpy.ops.platelight.apply_sbrdf(preset="polished_paint") == {"FINISHED"}
     assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
     maps, p, N = read_maps(bpy, sphere), sbrdf_params(bpy, sphere), sphere_normals()
-    bpy.ops.wm.save_mainfile()
-    farm = tmp_path / "farm"
-    farm.mkdir()
-    shutil.copy(tmp_path / "shot.blend", farm / "shot.blend")
-    shutil.copy(tmp_path / "world.exr", farm / "world.exr")
-    bpy.ops.wm.open_mainfile(filepath=str(farm / "shot.blend"))
-    assert not (farm / "platelight_maps").exists()
+    farm = open_on_farm(bpy, tmp_path)
     image = render(bpy, farm, "farm.exr")
     assert_matches(image, sbrdf_reference(maps, p), N)
 
@@ -664,8 +671,6 @@ def test_packed_parallax_look_ups_render_after_the_blend_moves(bpy_clean, tmp_pa
     """Pack Maps with both parallax corrections on: the distance map and the irradiance grid
     travel in the .blend too, so a farm node without the maps folder renders what the
     workstation does (unpacked, the grid would read black with its switch on)."""
-    import shutil
-
     bpy = bpy_clean
     scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["city"])
     scene.platelight.pack_maps = True
@@ -677,13 +682,7 @@ def test_packed_parallax_look_ups_render_after_the_blend_moves(bpy_clean, tmp_pa
     packed = {im.name.rsplit("/", 1)[-1] for im in bpy.data.images if im.packed_file is not None}
     assert {"diffuse_grid.exr", "distance.exr"} <= packed
     here = render(bpy, tmp_path, "here.exr")
-    bpy.ops.wm.save_mainfile()
-    farm = tmp_path / "farm"
-    farm.mkdir()
-    shutil.copy(tmp_path / "shot.blend", farm / "shot.blend")
-    shutil.copy(tmp_path / "world.exr", farm / "world.exr")
-    bpy.ops.wm.open_mainfile(filepath=str(farm / "shot.blend"))
-    assert not (farm / "platelight_maps").exists()
+    farm = open_on_farm(bpy, tmp_path)
     there = render(bpy, farm, "farm.exr")
     inside = np.isfinite(sphere_normals()[..., 0])
     assert np.abs(here - there)[inside].max() < 1e-5
