@@ -269,18 +269,30 @@ def _folder_key(folder: str) -> str:
     return os.path.normpath(os.path.abspath(folder))
 
 
+def _named_value(g, name, default):
+    """A Value node the binding finds by ``name`` and sets (a switch, a grid's size)."""
+    node = g.node("ShaderNodeValue")
+    node.name = node.label = name
+    node.outputs[0].default_value = default
+    return node.outputs[0]
+
+
+def _named_vector(g, name):
+    """A Combine XYZ node the binding finds by ``name`` and sets (a probe centre, a box corner)."""
+    node = g.node("ShaderNodeCombineXYZ")
+    node.name = node.label = name
+    return node.outputs["Vector"]
+
+
 def _parallax(g, env, direction):
     """The specular look-up direction corrected for the shading point's offset from the probe
     centre: the distance-impostor search of addon/ibl/distance.py (its numpy reference), a linear
     search over geometric steps, then secant steps. The switch (0/1, set by the binding) falls
     back to the uncorrected direction, as does a ray that meets nothing."""
     position = g.node("ShaderNodeNewGeometry").outputs["Position"]
-    centre = g.node("ShaderNodeCombineXYZ")
-    centre.name = centre.label = CENTRE_NODE
-    switch = g.node("ShaderNodeValue")
-    switch.name = switch.label = PARALLAX_NODE
-    switch.outputs[0].default_value = 0.0
-    p = g.vmath("SUBTRACT", position, centre.outputs["Vector"])
+    centre = _named_vector(g, CENTRE_NODE)
+    switch = _named_value(g, PARALLAX_NODE, 0.0)
+    p = g.vmath("SUBTRACT", position, centre)
     reflected = g.vmath("NORMALIZE", direction)
     p_len = g.vmath("LENGTH", p)
 
@@ -317,28 +329,17 @@ def _parallax(g, env, direction):
         hit = g.math("GREATER_THAN", s_m, 0.0)
         t_b, s_b, t_a, s_a = pick(hit, t_m, t_b), pick(hit, s_m, s_b), pick(hit, t_a, t_m), pick(hit, s_a, s_m)
     corrected = g.mix("VECTOR", found, reflected, g.vmath("NORMALIZE", point(secant())))
-    return g.mix("VECTOR", switch.outputs[0], reflected, corrected)
+    return g.mix("VECTOR", switch, reflected, corrected)
 
 
 def _irradiance_grid(g, direction):
     """The diffuse map seen from the shading point: the eight maps of the irradiance grid around
     it (addon/ibl/irradiance_grid.py: trilinear, atlas_uv) read along ``direction``."""
-    def value(name, default):
-        node = g.node("ShaderNodeValue")
-        node.name = node.label = name
-        node.outputs[0].default_value = default
-        return node.outputs[0]
-
-    def vector(name):
-        node = g.node("ShaderNodeCombineXYZ")
-        node.name = node.label = name
-        return node.outputs["Vector"]
-
-    points = value(names.GRID_POINTS_NODE, float(irradiance_grid.DEFAULT_POINTS))
-    height = value(names.GRID_HEIGHT_NODE, 16.0)
+    points = _named_value(g, names.GRID_POINTS_NODE, float(irradiance_grid.DEFAULT_POINTS))
+    height = _named_value(g, names.GRID_HEIGHT_NODE, 16.0)
     position = g.node("ShaderNodeNewGeometry").outputs["Position"]
-    cell = g.vmath("MULTIPLY", g.vmath("SUBTRACT", position, vector(names.GRID_LO_NODE)),
-                   vector(names.GRID_SCALE_NODE))
+    cell = g.vmath("MULTIPLY", g.vmath("SUBTRACT", position, _named_vector(g, names.GRID_LO_NODE)),
+                   _named_vector(g, names.GRID_SCALE_NODE))
     cell = g.vmath("MINIMUM", g.vmath("MAXIMUM", cell, (0.0, 0.0, 0.0)), (1.0, 1.0, 1.0))
     cell = g.vmath("SCALE", cell, scale=g.math("SUBTRACT", points, 1.0))
     split = g.node("ShaderNodeSeparateXYZ")
@@ -415,10 +416,8 @@ def _build(tree):
             total = term if total is None else g.vmath("ADD", total, term)
         return total
 
-    switch = g.node("ShaderNodeValue")
-    switch.name = switch.label = names.DIFFUSE_PARALLAX_NODE
-    switch.outputs[0].default_value = 0.0
-    irradiance = g.mix("VECTOR", switch.outputs[0], env("diffuse", inp["Diffuse Direction"]),
+    switch = _named_value(g, names.DIFFUSE_PARALLAX_NODE, 0.0)
+    irradiance = g.mix("VECTOR", switch, env("diffuse", inp["Diffuse Direction"]),
                        _irradiance_grid(g, inp["Diffuse Direction"]))
     diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], irradiance)
     specular_direction = _parallax(g, env, inp["Specular Direction"])

@@ -39,6 +39,12 @@ def record_filename(frame: int | None) -> str:
     return "bake.json" if frame is None else f"bake_{int(frame):04d}.json"
 
 
+def lookup_filenames(frame: int | None) -> list[str]:
+    """The files of a frame that the probe group reads beside the four maps: the parallax
+    look-ups' distance map and irradiance grid (each present only when the bake wanted it)."""
+    return [distance_filename(frame), grid_filename(frame)]
+
+
 def read_record(folder: str, frame: int | None) -> dict:
     """The frame's bake record, or {} if missing or unreadable (which reads as a stale cache)."""
     try:
@@ -82,8 +88,8 @@ def remove_single_frame(folder: str) -> list[str]:
     ``diffuse.exr``... and ``bake.json``, or the binding (which prefers single files) would keep
     showing the old static maps instead of the new sequence. Returns the files removed."""
     removed = []
-    for filename in [map_filename(n, None) for n in MAP_NAMES] + [distance_filename(None), grid_filename(None),
-                                                                  record_filename(None)]:
+    single = [map_filename(n, None) for n in MAP_NAMES] + lookup_filenames(None) + [record_filename(None)]
+    for filename in single:
         path = os.path.join(folder, filename)
         if os.path.isfile(path):
             os.unlink(path)

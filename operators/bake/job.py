@@ -260,13 +260,13 @@ class ProbeBake:
         return MapSettings(sampling=self.scene.platelight.sampling, heights=heights)
 
     # ---- hashing
-    def probe_hash(self, ob, origin, maps, owner):
+    def probe_hash(self, ob, origin, maps, owner, grid):
         frame = self.scene.frame_current
         seen = sorted((o.name_full, self._describer.seen_digest(o, frame)) for o in self.scene.objects
                       if o is not ob and o is not self._renderer.camera and renderable(o, self.view_layer)
                       and self._in_range(origin, o))
         return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.heights.get(ob.name),
-                          owner)
+                          owner, grid)
 
     # ---- steps
     def start(self):
@@ -299,7 +299,8 @@ class ProbeBake:
         maps = maps_for(ob)
         origin = probe_origin(ob)
         owner = owner_visibility(ob, self.scene.platelight.probe_owner_shadows)
-        digest = self.probe_hash(ob, origin, maps, owner)
+        wants_grid = needs.wants_irradiance_grid(maps, self.scene.platelight.probe_diffuse_parallax)
+        digest = self.probe_hash(ob, origin, maps, owner, wants_grid)
         if self.use_cache and layout.is_cached(folder, key_frame, digest, maps):
             self.reused.append((ob.name, frame))
             status = "baked (unchanged)"
@@ -309,7 +310,6 @@ class ProbeBake:
             return
         else:
             # the glossy look-ups and the diffuse grid both see the scene through the distance map
-            wants_grid = needs.wants_irradiance_grid(maps, self.scene.platelight.probe_diffuse_parallax)
             wants_distance = wants_grid or any(name != "diffuse" for name in maps)
             height = self.heights.get(ob.name)
             placed = {OWNER_RENDER_ARGUMENT[owner]: [ob]}

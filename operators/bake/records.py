@@ -10,28 +10,27 @@ import numpy as np
 
 from ...addon import names
 from ...addon.bake.hashing import content_hash
-from ...addon.bake.needs import OWNER_INDIRECT, wants_irradiance_grid
+from ...addon.bake.layout import lookup_filenames
+from ...addon.bake.needs import OWNER_INDIRECT
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
-from ...addon.ibl.distance import distance_filename
 from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
-from ...addon.ibl.irradiance_grid import grid_filename
 from ...addon.ibl.maps import map_filename
 
 
-def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner=None):
+def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner=None, grid=False):
     """The hash of one object's probe: where it sits, which maps, the world, the bake settings,
     the probe's height when it is sized to the object on screen, Cycles' bounces and ``seen``
-    (sorted (object, description digest) of what the probe sees)."""
+    (sorted (object, description digest) of what the probe sees); ``owner`` and ``grid`` as the
+    bake decided them (needs.owner_visibility, needs.wants_irradiance_grid)."""
     settings = scene.platelight
     cycles = scene.cycles
     sized = {"sized_height": sized_height} if sized_height else {}     # older records stay valid
     # An owner seen by the probe's indirect rays makes another probe; the older modes hash as before.
     indirect = {"owner": owner} if owner == OWNER_INDIRECT else {}
     # A probe with an irradiance grid is another bake; one without hashes as before.
-    wants_grid = wants_irradiance_grid(maps, settings.probe_diffuse_parallax)
-    grid = {"irradiance_grid": GRID_VERSION} if wants_grid else {}
+    with_grid = {"irradiance_grid": GRID_VERSION} if grid else {}
     return content_hash({
-        **sized, **indirect, **grid,
+        **sized, **indirect, **with_grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
         "distance": DISTANCE_VERSION,
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
@@ -62,8 +61,7 @@ def pack_maps(folder_rel, frame, maps, refresh):
     look-ups' distance map and irradiance grid where the bake wrote them (a farm node without
     the folder would read them black while the group's switches stay on)."""
     filenames = [map_filename(name, frame) for name in maps]
-    filenames += [f for f in (distance_filename(frame), grid_filename(frame))
-                  if os.path.isfile(bpy.path.abspath(folder_rel + f))]
+    filenames += [f for f in lookup_filenames(frame) if os.path.isfile(bpy.path.abspath(folder_rel + f))]
     for filename in filenames:
         label = f"{names.PACKED_MAP_PREFIX}{folder_rel.rstrip('/').rsplit('/', 1)[-1]}/{filename}"
         pack_map(folder_rel + filename, label, refresh)
