@@ -21,14 +21,15 @@ from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
 from ..addon.ibl import irradiance_grid
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
-from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_NAMES, map_filename
+from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 5                          # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 6                          # 3: parallax-corrected specular look-ups (distance map)
                                      # 4: diffuse look-ups from the irradiance grid
                                      # 5: the grid's atlas read by Environment Textures (EEVEE)
+                                     # 6: glossy look-ups narrowed by their footprint
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
@@ -284,11 +285,13 @@ def _named_vector(g, name):
     return node.outputs["Vector"]
 
 
-def _parallax(g, env, direction):
-    """The specular look-up direction corrected for the shading point's offset from the probe
-    centre: the distance-impostor search of addon/ibl/distance.py (its numpy reference), a linear
-    search over geometric steps, then secant steps. The switch (0/1, set by the binding) falls
-    back to the uncorrected direction, as does a ray that meets nothing."""
+def _parallax(g, direction):
+    """(direction, footprint ratio): the specular look-up direction corrected for the shading
+    point's offset from the probe centre, by the distance-impostor search of addon/ibl/distance.py
+    (its numpy reference parallax_search): a linear search over geometric steps, then secant
+    steps; and the hit's distance from the point over its distance from the centre. The switch
+    (0/1, set by the binding) falls back to the uncorrected direction and a ratio of 1, as does a
+    ray that meets nothing."""
     position = g.node("ShaderNodeNewGeometry").outputs["Position"]
     centre = _named_vector(g, CENTRE_NODE)
     switch = _named_value(g, PARALLAX_NODE, 0.0)
@@ -328,8 +331,32 @@ def _parallax(g, env, direction):
         s_m = s(t_m)
         hit = g.math("GREATER_THAN", s_m, 0.0)
         t_b, s_b, t_a, s_a = pick(hit, t_m, t_b), pick(hit, s_m, s_b), pick(hit, t_a, t_m), pick(hit, s_a, s_m)
-    corrected = g.mix("VECTOR", found, reflected, g.vmath("NORMALIZE", point(secant())))
-    return g.mix("VECTOR", switch, reflected, corrected)
+    t_hit = secant()
+    hit_point = point(t_hit)
+    corrected = g.mix("VECTOR", found, reflected, g.vmath("NORMALIZE", hit_point))
+    ratio = g.math("DIVIDE", t_hit, g.math("MAXIMUM", g.vmath("LENGTH", hit_point), 1e-6))
+    ratio = g.math("MINIMUM", g.math("MAXIMUM", ratio, 0.0), 1.0)
+    ratio = g.math("MULTIPLY_ADD", g.math("MULTIPLY", found, switch), g.math("SUBTRACT", ratio, 1.0), 1.0)
+    return g.mix("VECTOR", switch, reflected, corrected), ratio
+
+
+def _footprint_glossiness(g, glossiness, ratio):
+    """addon/ibl/maps.footprint_glossiness as nodes: the glossiness whose lobe's half-energy
+    angle (piecewise linear between the maps' MAP_HALF_ANGLES) is ``ratio`` times that of
+    ``glossiness``."""
+    knots = MAP_HALF_ANGLES
+    position = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
+                      float(GLOSSINESS_SCALE))
+    angle = knots[0]
+    for k in range(len(knots) - 1):
+        part = g.math("MINIMUM", g.math("MAXIMUM", g.math("SUBTRACT", position, float(k)), 0.0), 1.0)
+        angle = g.math("MULTIPLY_ADD", part, knots[k + 1] - knots[k], angle)
+    angle = g.math("MULTIPLY", angle, ratio)
+    narrowed = 0.0
+    for k in range(len(knots) - 1):
+        part = g.math("DIVIDE", g.math("SUBTRACT", knots[k], angle), knots[k] - knots[k + 1])
+        narrowed = g.math("ADD", narrowed, g.math("MINIMUM", g.math("MAXIMUM", part, 0.0), 1.0))
+    return g.math("DIVIDE", narrowed, float(GLOSSINESS_SCALE))
 
 
 def _irradiance_grid(g, direction):
@@ -402,14 +429,15 @@ def _build(tree):
         g.link(direction, node.inputs["Vector"])
         return node.outputs["Color"]
 
-    # Tent weights of the four maps from the (Fresnel-adjusted) glossiness n'.
-    scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", inp["Map Glossiness"], 0.0), 1.0),
-                    float(GLOSSINESS_SCALE))
-    weights = [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
-                                        g.math("ABSOLUTE", g.math("SUBTRACT", scaled, float(k)))),
-                      0.0) for k in range(len(MAP_NAMES))]
+    def tent_weights(glossiness):
+        """The four maps' weights for the (Fresnel-adjusted) glossiness n' (maps.map_weights)."""
+        scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
+                        float(GLOSSINESS_SCALE))
+        return [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
+                                         g.math("ABSOLUTE", g.math("SUBTRACT", scaled, float(k)))),
+                       0.0) for k in range(len(MAP_NAMES))]
 
-    def blended(direction):
+    def blended(direction, weights):
         total = None
         for name, weight in zip(MAP_NAMES, weights):
             term = g.vmath("SCALE", env(name, direction), scale=weight)
@@ -420,12 +448,16 @@ def _build(tree):
     irradiance = g.mix("VECTOR", switch, env("diffuse", inp["Diffuse Direction"]),
                        _irradiance_grid(g, inp["Diffuse Direction"]))
     diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], irradiance)
-    specular_direction = _parallax(g, env, inp["Specular Direction"])
-    specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(specular_direction))
+    specular_direction, footprint = _parallax(g, inp["Specular Direction"])
+    # The maps are blurred as seen from the centre; a lobe meeting a surface near the shading
+    # point covers less of it (docs/decisions.md, "Glossy footprint").
+    specular_weights = tent_weights(_footprint_glossiness(g, inp["Map Glossiness"], footprint))
+    specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(specular_direction, specular_weights))
+    refraction_weights = tent_weights(inp["Map Glossiness"])
     channels = []
     for index, channel in enumerate("RGB"):
         sep = g.node("ShaderNodeSeparateColor")
-        g.link(blended(inp[f"Refraction Direction {channel}"]), sep.inputs["Color"])
+        g.link(blended(inp[f"Refraction Direction {channel}"], refraction_weights), sep.inputs["Color"])
         channels.append(sep.outputs[index])
     combine = g.node("ShaderNodeCombineColor")
     for index, socket in enumerate(channels):

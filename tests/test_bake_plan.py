@@ -94,9 +94,9 @@ def test_maps_needed_unions_materials_and_defaults_to_all():
 
 
 def test_owner_visibility_follows_how_sharply_the_owner_reflects():
-    """A sharp reflector's probe shows the floor under it as it is (the owner blocks and bounces
-    its indirect light); a matte or glossy one keeps the shadow-only owner; the paper's setting
-    hides it whatever it is."""
+    """A sharp reflector's or a metal's probe shows the floor under it as it is (the owner blocks
+    and bounces its indirect light); an object with a diffuse term, or a rough black one, keeps
+    the shadow-only owner; the paper's setting hides it whatever it is."""
     mirror = needs.Lobes(diffuse=False, specular=True, glossiness=0.9, fresnel=True)
     copper = needs.Lobes(diffuse=False, specular=True, glossiness=0.6, fresnel=True)
     matte = needs.Lobes(diffuse=True, specular=False, glossiness=0.0, fresnel=False)
@@ -104,7 +104,11 @@ def test_owner_visibility_follows_how_sharply_the_owner_reflects():
     assert needs.owner_visibility([mirror], True) == needs.OWNER_INDIRECT
     assert needs.owner_visibility([matte, mirror], True) == needs.OWNER_INDIRECT
     assert needs.owner_visibility([textured], True) == needs.OWNER_INDIRECT
-    assert needs.owner_visibility([copper], True) == needs.OWNER_SHADOWS
+    glossy_plastic = needs.Lobes(diffuse=True, specular=True, glossiness=0.6, fresnel=True)
+    rough_black = needs.Lobes(diffuse=False, specular=True, glossiness=0.0, fresnel=True)
+    assert needs.owner_visibility([copper], True) == needs.OWNER_INDIRECT
+    assert needs.owner_visibility([copper, glossy_plastic], True) == needs.OWNER_SHADOWS
+    assert needs.owner_visibility([rough_black], True) == needs.OWNER_SHADOWS
     assert needs.owner_visibility([matte], True) == needs.OWNER_SHADOWS
     assert needs.owner_visibility([], True) == needs.OWNER_SHADOWS
     for lobes in ([mirror], [matte], []):

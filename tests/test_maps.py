@@ -149,3 +149,28 @@ def test_write_maps_names_and_frames(tmp_path):
     assert sorted(p.split("/")[-1] for p in paths.values()) == ["diffuse_0007.exr", "specular_0007.exr"]
     write_exr(tmp_path / "x.exr", np.zeros((4, 8, 3)))
     assert sorted(f.name for f in tmp_path.iterdir()) == ["diffuse_0007.exr", "specular_0007.exr", "x.exr"]
+
+
+def test_footprint_glossiness_narrows_the_half_energy_angle_by_the_ratio():
+    """The maps' half-energy angles come from their Phong exponents (45, 22.2, 8.35, 0 degrees);
+    a ratio of 1 keeps any glossiness, 0 gives the mirror, and in between the angle of the
+    result is the ratio times the angle of the input (exactly at the maps' knots)."""
+    import math
+
+    from platelight.addon.ibl.maps import MAP_HALF_ANGLES, footprint_glossiness, lobe_half_angle
+
+    assert MAP_HALF_ANGLES[0] == pytest.approx(45.0)
+    assert MAP_HALF_ANGLES[1:3] == pytest.approx((22.20, 8.35), abs=0.01)
+    for s in (1.0, 8.0, 64.0):       # half the normalized lobe's energy lies inside the angle
+        c = math.cos(math.radians(lobe_half_angle(s)))
+        assert 1.0 - c ** (s + 1) == pytest.approx(0.5)
+    n = np.linspace(0.0, 1.0, 31)
+    np.testing.assert_allclose(footprint_glossiness(n, 1.0), n, atol=1e-12)
+    np.testing.assert_allclose(footprint_glossiness(n, 0.0), 1.0)
+    # glossy1 (22.2 deg) at ratio 8.35 / 22.2 is glossy2; the diffuse lobe at ratio 0.5 is 22.5 deg
+    assert footprint_glossiness(1 / 3, MAP_HALF_ANGLES[2] / MAP_HALF_ANGLES[1]) == pytest.approx(2 / 3)
+    # 22.5 deg lies between glossy1 (22.2) and diffuse (45), linear in the angle
+    want = (1.0 - (22.5 - MAP_HALF_ANGLES[1]) / (45.0 - MAP_HALF_ANGLES[1])) / 3.0
+    assert footprint_glossiness(0.0, 0.5) == pytest.approx(want)
+    ratios = np.linspace(0.0, 1.0, 11)
+    assert np.all(np.diff(footprint_glossiness(0.4, ratios)) <= 0)     # wider footprint, blurrier

@@ -71,11 +71,21 @@ OWNER_INDIRECT = "indirect"    # hidden from the probe's camera only: it also bl
 
 
 def owner_visibility(materials: list[Lobes], owner_shadows: bool) -> str:
-    """What the owner is to its own probe's rays. A sharp reflector reads the floor under itself
-    through parallax-corrected look-ups, so its probe shows that floor as it is (OWNER_INDIRECT:
-    a mirror sphere gained 2.1 dB at 480x270, docs/decisions.md). A matte object keeps
-    OWNER_SHADOWS: the full occlusion darkened its lower half (34.65 -> 31.79 dB from the
-    centre's irradiance map; 38.0 -> 37.2 dB with the irradiance grid)."""
+    """What the owner is to its own probe's rays. A sharp reflector or a metal reads the floor
+    under itself through parallax-corrected specular look-ups, so its probe shows that floor as
+    it is (OWNER_INDIRECT: a mirror sphere gained 2.1 dB at 480x270; a roughness-0.3 copper one
+    0.3 dB, with the glossy footprint 0.8 dB in all; docs/decisions.md). An object with a diffuse
+    term keeps OWNER_SHADOWS: the full occlusion darkened a matte ball's lower half (34.65 ->
+    31.79 dB from the centre's irradiance map; 38.0 -> 37.2 dB with the irradiance grid)."""
     if not owner_shadows:
         return OWNER_HIDDEN
-    return OWNER_INDIRECT if needs_sharp_specular(materials) else OWNER_SHADOWS
+    return OWNER_INDIRECT if needs_sharp_specular(materials) or is_metal(materials) else OWNER_SHADOWS
+
+
+def is_metal(materials: list[Lobes]) -> bool:
+    """Do all the object's materials reflect without a diffuse term and with a lobe narrower
+    than the diffuse map's (a metal, polished or brushed)?"""
+    return bool(materials) and all(
+        lobes.specular and not lobes.diffuse
+        and (lobes.glossiness is None or map_weights(lobes.glossiness)["diffuse"] < 1.0)
+        for lobes in materials)

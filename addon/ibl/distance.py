@@ -124,6 +124,15 @@ def _equirect_lookup(distance: np.ndarray, directions: np.ndarray) -> np.ndarray
 def parallax_directions(distance: np.ndarray, p: np.ndarray, reflected: np.ndarray) -> np.ndarray:
     """Corrected look-up directions for shading points ``p`` (relative to the probe centre,
     (..., 3)) and reflected directions ``reflected`` (..., 3): the reference of the node group."""
+    return parallax_search(distance, p, reflected)[0]
+
+
+def parallax_search(distance: np.ndarray, p: np.ndarray, reflected: np.ndarray):
+    """(corrected directions, footprint ratios) for shading points ``p`` and reflected
+    directions: the node group's search. The footprint ratio is the hit's distance from the
+    shading point over its distance from the probe centre (1 where the ray escapes): a lobe of a
+    given angle seen from the point covers that fraction of the width it covers from the centre,
+    where the maps were blurred (maps.footprint_glossiness)."""
     r_dir = reflected / np.linalg.norm(reflected, axis=-1, keepdims=True)
     plen = np.linalg.norm(p, axis=-1)
 
@@ -150,5 +159,8 @@ def parallax_directions(distance: np.ndarray, p: np.ndarray, reflected: np.ndarr
         t_b, s_b = np.where(hit, t_m, t_b), np.where(hit, s_m, s_b)
         t_a, s_a = np.where(hit, t_a, t_m), np.where(hit, s_a, s_m)
     t = t_a + (t_b - t_a) * s_a / np.minimum(s_a - s_b, -1e-9)
-    look = np.where(found[..., None], p + t[..., None] * r_dir, r_dir)
-    return look / np.linalg.norm(look, axis=-1, keepdims=True)
+    point = p + t[..., None] * r_dir
+    reach = np.linalg.norm(point, axis=-1)
+    look = np.where(found[..., None], point, r_dir)
+    ratio = np.where(found, np.clip(t / np.maximum(reach, 1e-6), 0.0, 1.0), 1.0)
+    return look / np.linalg.norm(look, axis=-1, keepdims=True), ratio

@@ -14,6 +14,7 @@ Two modes (``MapSettings.sampling``):
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import time
 from functools import lru_cache
@@ -39,6 +40,31 @@ LOBE_CUTOFF = 1e-7
 # The clamped cosine's factors decay only as l^-2.5; this degree keeps the diffuse map within
 # 0.1 % of brute force on sunny probes (docs/bench/maps.md) at no measurable cost.
 DIFFUSE_LMAX_EXACT = 48
+
+
+def lobe_half_angle(exponent: float) -> float:
+    """Degrees from R within which the normalized Phong lobe (s+1)/(2 pi) cos^s holds half its
+    energy: 1 - cos^(s+1) = 1/2."""
+    return math.degrees(math.acos(0.5 ** (1.0 / (exponent + 1.0))))
+
+
+# Half-energy angle of each map's lobe at the default exponents (design.md): 45, 22.2, 8.35, 0
+# degrees. The roughness conversion (material/principled.py) and the footprint rule below use them.
+MAP_HALF_ANGLES = (lobe_half_angle(1.0), lobe_half_angle(8.0), lobe_half_angle(64.0), 0.0)
+
+
+def footprint_glossiness(glossiness, ratio):
+    """The glossiness whose lobe is ``ratio`` times as wide (half-energy angle, piecewise linear
+    between the maps' angles) as that of ``glossiness``. The maps are blurred as seen from the
+    probe's centre; a reflected ray that meets a surface at distance t from the shading point and
+    d from the centre sees a lobe of angle a there as wide as a lobe of a t / d seen from the
+    centre (Lagarde and Zanuttini's distance-based roughness, 2012). The node group builds the
+    same rule (node_groups/probe_maps.py)."""
+    knots = np.asarray(MAP_HALF_ANGLES)                   # at map positions k = 0..3
+    position = np.clip(np.asarray(glossiness, dtype=np.float64), 0.0, 1.0) * GLOSSINESS_SCALE
+    angle = np.interp(position, np.arange(len(knots)), knots)
+    narrowed = angle * np.clip(np.asarray(ratio, dtype=np.float64), 0.0, 1.0)
+    return np.interp(narrowed, knots[::-1], np.arange(len(knots))[::-1]) / GLOSSINESS_SCALE
 
 
 def map_weights(glossiness: float) -> dict[str, float]:

@@ -139,6 +139,85 @@ def test_parallax_search_finds_a_plane():
     assert np.median(angle) < 0.5 and np.percentile(angle, 95) < 2.0, (np.median(angle), angle.max())
 
 
+def floor_distance_map(height, depth):
+    """The distance map of a centre ``depth`` above an endless floor: depth / sin(depression)
+    below the horizon, FAR above."""
+    elevation = row_elevations(height)
+    below = elevation < 0
+    dist = np.where(below, depth / np.sin(-np.minimum(elevation, -1e-6)), dm.FAR)[:, None]
+    return np.minimum(dist * np.ones((1, 2 * height)), dm.FAR).astype(np.float32)
+
+
+def test_footprint_ratio_is_the_hit_distance_over_its_distance_from_the_centre():
+    """The search's footprint ratio against the exact floor intersection: t / |p + t R|, and 1
+    for a ray that escapes to the sky."""
+    dist = floor_distance_map(256, 0.5)
+    rng = np.random.default_rng(2)
+    p = rng.normal(size=(400, 3))
+    p *= 0.45 / np.linalg.norm(p, axis=1, keepdims=True)
+    reflected = rng.normal(size=(400, 3))
+    reflected[:, 2] = np.where(np.arange(400) < 300, -np.abs(reflected[:, 2]) - 0.3,
+                               np.abs(reflected[:, 2]) + 0.1)        # a quarter towards the sky
+    reflected /= np.linalg.norm(reflected, axis=1, keepdims=True)
+    t = (-0.5 - p[:, 2]) / reflected[:, 2]
+    exact = t / np.linalg.norm(p + t[:, None] * reflected, axis=1)
+    _, ratio = dm.parallax_search(dist, p, reflected)
+    down = np.arange(400) < 300
+    assert np.median(np.abs(ratio[down] - exact[down])) < 0.01, np.abs(ratio[down] - exact[down]).max()
+    assert (ratio[~down] == 1.0).all()
+
+
+def test_glossy_lookups_narrow_with_their_footprint_as_numpy_says(bpy_clean, tmp_path):
+    """A glossy sphere whose probe sees a floor 0.3 m under it: each map's weight in the render
+    (maps of pure red, green, blue and black, so the colour is the weights) against numpy's
+    parallax search and maps.footprint_glossiness; the lower half reads sharper maps than the
+    material's glossiness, the upper half (the sky) exactly its own."""
+    import dataclasses
+
+    import sbrdf_scene as sc
+    from bl_ext.dev.platelight.node_groups import sbrdf_material as sm
+    from platelight.addon.ibl.maps import footprint_glossiness, map_weights
+    from platelight.addon.material.params import SBRDFParams
+
+    bpy = bpy_clean
+    folder = tmp_path / "probe"
+    colours = {"diffuse": (1, 0, 0), "glossy1": (0, 1, 0), "glossy2": (0, 0, 1), "specular": (0, 0, 0)}
+    sc.write_maps(folder, {name: np.ones((16, 32, 3), np.float32) * np.float32(c)
+                           for name, c in colours.items()})
+    dist = floor_distance_map(64, 1.3)
+    dm.write_distance(folder, dist)
+    (folder / "bake.json").write_text(json.dumps({"origin": [0.0, 0.0, 0.0]}))
+    (sphere,), _ = sc.setup_scene(bpy, 1, size=64)
+    sphere.platelight.probe_dir = str(folder)
+    glossiness = 0.55
+    params = dataclasses.replace(SBRDFParams(), diffuse_albedo=(0.0, 0.0, 0.0),
+                                 specular_albedo=(1.0, 1.0, 1.0), glossiness=glossiness,
+                                 fresnel_falloff=1e-4)
+    material = sm.apply_sbrdf_material(sphere, params=params)
+    coordinates = material.node_tree.nodes.new("ShaderNodeTexCoord")
+    material.node_tree.links.new(coordinates.outputs["Object"], sm.sbrdf_node(material).inputs["Normal"])
+    image = sc.render(bpy, tmp_path / "weights.exr")
+    sphere.material_slots[0].material = sc.position_material(bpy)
+    pos = sc.render(bpy, tmp_path / "position.exr")
+
+    mask = sc.interior_mask(pos[..., 3]) & sc.interior_mask(image[..., 3])
+    P = ((pos[..., :3].astype(np.float64) - 0.5) * 4.0)[mask]
+    N = P / np.linalg.norm(P, axis=1, keepdims=True)
+    view = np.broadcast_to(sc.VIEW, N.shape)
+    reflected = 2 * (view * N).sum(1, keepdims=True) * N - view
+    _, ratio = dm.parallax_search(dist, P, reflected)
+    narrowed = footprint_glossiness(glossiness, ratio)
+    want = np.array([[map_weights(n)[name] for name in ("diffuse", "glossy1", "glossy2")] for n in narrowed])
+    got = image[..., :3][mask].astype(np.float64)
+    error = np.abs(got - want).max(axis=1)
+    # a nearest-texel distance look-up may round the other way in float32: a few pixels differ
+    assert np.percentile(error, 98) < 0.01, np.percentile(error, 98)
+    sharper = narrowed > glossiness + 0.05
+    assert sharper.mean() > 0.2, sharper.mean()                       # the test exercises it
+    sky = ratio == 1.0
+    assert sky.mean() > 0.2 and np.abs(got[sky] - want[sky]).max() < 1e-3
+
+
 def test_matte_ball_diffuse_parallax_is_closer_to_path_tracing(bpy_clean, tmp_path, studio_hdris):
     """A matte ball on a phantom floor: its lower half sees the floor (and its own shadow on it)
     from close by, not from the probe's centre. The irradiance grid (Diffuse Parallax, the
