@@ -343,7 +343,7 @@ def _parallax(g, direction):
 def _footprint_glossiness(g, glossiness, ratio):
     """addon/ibl/maps.footprint_glossiness as nodes: the glossiness whose lobe's half-energy
     angle (piecewise linear between the maps' MAP_HALF_ANGLES) is ``ratio`` times that of
-    ``glossiness``."""
+    ``glossiness``, the ratio fading out between glossy1's angle and the diffuse lobe's."""
     knots = MAP_HALF_ANGLES
     position = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
                       float(GLOSSINESS_SCALE))
@@ -351,6 +351,9 @@ def _footprint_glossiness(g, glossiness, ratio):
     for k in range(len(knots) - 1):
         part = g.math("MINIMUM", g.math("MAXIMUM", g.math("SUBTRACT", position, float(k)), 0.0), 1.0)
         angle = g.math("MULTIPLY_ADD", part, knots[k + 1] - knots[k], angle)
+    fade = g.math("MINIMUM", g.math("MAXIMUM", g.math("DIVIDE", g.math("SUBTRACT", knots[0], angle),
+                                                     knots[0] - knots[1]), 0.0), 1.0)
+    ratio = g.math("SUBTRACT", 1.0, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, ratio), fade))
     angle = g.math("MULTIPLY", angle, ratio)
     narrowed = 0.0
     for k in range(len(knots) - 1):

@@ -153,8 +153,8 @@ def test_write_maps_names_and_frames(tmp_path):
 
 def test_footprint_glossiness_narrows_the_half_energy_angle_by_the_ratio():
     """The maps' half-energy angles come from their Phong exponents (45, 22.2, 8.35, 0 degrees);
-    a ratio of 1 keeps any glossiness, 0 gives the mirror, and in between the angle of the
-    result is the ratio times the angle of the input (exactly at the maps' knots)."""
+    a ratio of 1 keeps any glossiness; for lobes up to glossy1's, 0 gives the mirror and in
+    between the angle of the result is the ratio times the angle of the input."""
     import math
 
     from platelight.addon.ibl.maps import MAP_HALF_ANGLES, footprint_glossiness, lobe_half_angle
@@ -166,11 +166,15 @@ def test_footprint_glossiness_narrows_the_half_energy_angle_by_the_ratio():
         assert 1.0 - c ** (s + 1) == pytest.approx(0.5)
     n = np.linspace(0.0, 1.0, 31)
     np.testing.assert_allclose(footprint_glossiness(n, 1.0), n, atol=1e-12)
-    np.testing.assert_allclose(footprint_glossiness(n, 0.0), 1.0)
+    narrow = n[n >= 1 / 3]
+    np.testing.assert_allclose(footprint_glossiness(narrow, 0.0), 1.0)
     # glossy1 (22.2 deg) at ratio 8.35 / 22.2 is glossy2; the diffuse lobe at ratio 0.5 is 22.5 deg
     assert footprint_glossiness(1 / 3, MAP_HALF_ANGLES[2] / MAP_HALF_ANGLES[1]) == pytest.approx(2 / 3)
-    # 22.5 deg lies between glossy1 (22.2) and diffuse (45), linear in the angle
-    want = (1.0 - (22.5 - MAP_HALF_ANGLES[1]) / (45.0 - MAP_HALF_ANGLES[1])) / 3.0
-    assert footprint_glossiness(0.0, 0.5) == pytest.approx(want)
+    # a wide lobe's footprint fades out: none for the diffuse lobe, half of it half-way to glossy1
+    assert footprint_glossiness(0.0, 0.2) == 0.0
+    middle = 0.5 / 3.0                                       # angle (45 + 22.2) / 2
+    angle = (45.0 + MAP_HALF_ANGLES[1]) / 2.0 * (1.0 - 0.5 * (1.0 - 0.2))
+    want = (1.0 + (MAP_HALF_ANGLES[1] - angle) / (MAP_HALF_ANGLES[1] - MAP_HALF_ANGLES[2])) / 3.0
+    assert footprint_glossiness(middle, 0.2) == pytest.approx(want)
     ratios = np.linspace(0.0, 1.0, 11)
     assert np.all(np.diff(footprint_glossiness(0.4, ratios)) <= 0)     # wider footprint, blurrier

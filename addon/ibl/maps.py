@@ -58,12 +58,17 @@ def footprint_glossiness(glossiness, ratio):
     between the maps' angles) as that of ``glossiness``. The maps are blurred as seen from the
     probe's centre; a reflected ray that meets a surface at distance t from the shading point and
     d from the centre sees a lobe of angle a there as wide as a lobe of a t / d seen from the
-    centre (Lagarde and Zanuttini's distance-based roughness, 2012). The node group builds the
-    same rule (node_groups/probe_maps.py)."""
+    centre (Lagarde and Zanuttini's distance-based roughness, 2012). A wide lobe meets surfaces at
+    many distances, so the one its central ray meets stands for its footprint only when it is
+    narrow: the ratio applies in full up to glossy1's angle and fades out linearly towards the
+    diffuse lobe's (applied in full to the diffuse sphere's rough specular lobe it cost 0.17 dB,
+    docs/decisions.md). The node group builds the same rule (node_groups/probe_maps.py)."""
     knots = np.asarray(MAP_HALF_ANGLES)                   # at map positions k = 0..3
     position = np.clip(np.asarray(glossiness, dtype=np.float64), 0.0, 1.0) * GLOSSINESS_SCALE
     angle = np.interp(position, np.arange(len(knots)), knots)
-    narrowed = angle * np.clip(np.asarray(ratio, dtype=np.float64), 0.0, 1.0)
+    fade = np.clip((knots[0] - angle) / (knots[0] - knots[1]), 0.0, 1.0)
+    ratio = 1.0 - (1.0 - np.clip(np.asarray(ratio, dtype=np.float64), 0.0, 1.0)) * fade
+    narrowed = angle * ratio
     return np.interp(narrowed, knots[::-1], np.arange(len(knots))[::-1]) / GLOSSINESS_SCALE
 
 
