@@ -120,9 +120,10 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
     engine: EnumProperty(
         name="Engine",
         items=(("CYCLES", "Cycles", "Path-traced shadows (shadow catchers)"),
-               ("EEVEE", "EEVEE", "Rasterised differential rendering (EEVEE has no shadow "
-                "catcher): three fast renders, shadows from EEVEE's shadow maps, the world's sun "
-                "extracted as a shadow-casting light")),
+               ("EEVEE", "EEVEE", "Rasterised (EEVEE has no shadow catcher): with the shot's "
+                "shadows baked (Bake Shadows), two emission-only renders showing them; else "
+                "differential rendering, three renders with shadows from EEVEE's shadow maps and "
+                "the world's sun extracted as a shadow-casting light")),
         default="CYCLES",
     )
     cg_samples: IntProperty(
@@ -197,7 +198,12 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                 self.report({"WARNING"}, NO_GL_SENTENCE)
                 engine = "CYCLES"
             else:
-                engine, method = compat.EEVEE, "DIFFERENTIAL"
+                engine = compat.EEVEE
+                # Baked shadows are emission on the phantoms, which EEVEE renders exactly: the
+                # shot's path-traced shadow instead of EEVEE's shadow maps (docs/decisions.md).
+                # Without a current bake, Debevec's three layers.
+                if method != "BAKED":
+                    method = "DIFFERENTIAL"
         else:
             engine = "CYCLES"
 
@@ -257,7 +263,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         for name in (names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS):
             if name in scene.view_layers and name not in used:
                 scene.view_layers[name].use = False
-        if engine == compat.EEVEE:
+        if engine == compat.EEVEE and method == "DIFFERENTIAL":
             configure_eevee(scene)
         if context.window is not None:
             context.window.view_layer = cg_layer

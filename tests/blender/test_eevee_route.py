@@ -63,6 +63,50 @@ def test_eevee_composite_agrees_with_cycles(bpy_clean, tmp_path, studio_hdris):
     assert frame_psnr > 28
 
 
+def test_eevee_shows_the_shots_baked_shadows(bpy_clean, tmp_path, studio_hdris):
+    """With the shot's shadows baked, EEVEE renders the Baked Shadows method's two emission-only
+    layers (the SBRDF CG and the phantoms showing the baked ratio) instead of its own shadow
+    maps: the same composite as Cycles' baked route, set up a second time in the same scene.
+    Stated tolerance: object within 3 % (median), shadow darkening within 0.01 (measured 0.203
+    vs 0.202) and shadow PSNR above 35 dB against Cycles' (measured 39.7: both read the same
+    panorama; they differ only along the shadow's outline, where the engines' pixel filters and
+    sample positions differ, which at 96x54 is much of the shadow)."""
+    bpy = bpy_clean
+    bench = bench_module()
+    hdri = str(studio_hdris["city"])
+    material = bench.MATERIALS["diffuse"]
+    scene, _floor, sphere = bench.build(bpy, hdri, material)
+    scene.cycles.samples = 16
+    sphere.hide_render = True
+    plate, _ = bench.render(bpy, scene, tmp_path / "plate.exr")
+    sphere.hide_render = False
+    scene.objects["Floor"].platelight.phantom = True
+    bench.sbrdf_sphere(bpy, scene, sphere, tmp_path / "probes")
+    assert bpy.ops.platelight.bake_shadows() == {"FINISHED"}
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    images = {}
+    for engine in ("CYCLES", "EEVEE"):
+        assert bpy.ops.platelight.setup_composite(engine=engine, method="BAKED", samples=4,
+                                                  cg_samples=4) == {"FINISHED"}
+        assert {layer.name for layer in scene.view_layers if layer.use} == {
+            "PlateLight CG", "PlateLight Shadows"}
+        images[engine], _ = bench.render(bpy, scene, tmp_path / f"{engine}.exr")
+    assert scene.render.engine == compat().EEVEE
+    cycles, eevee = images["CYCLES"], images["EEVEE"]
+    obj, shadow = bench.masks(cycles, plate)
+    assert obj.sum() > 100 and shadow.sum() > 100
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    rel = np.abs(eevee[obj] @ lum - cycles[obj] @ lum) / (cycles[obj] @ lum)
+    assert np.median(rel) < 0.03, np.median(rel)
+    dark_cycles, dark_eevee = bench.darkening(cycles, plate, shadow), bench.darkening(eevee, plate, shadow)
+    peak = float(np.percentile(cycles, 99.5))
+    shadow_psnr = bench.psnr(eevee, cycles, shadow, peak)
+    print(f"EEVEE baked vs Cycles baked: object median {np.median(rel):.4f}, darkening "
+          f"{dark_eevee:.3f} vs {dark_cycles:.3f}, shadow {shadow_psnr:.1f} dB")
+    assert dark_cycles > 0.2 and abs(dark_eevee - dark_cycles) < 0.01, (dark_eevee, dark_cycles)
+    assert shadow_psnr > 35
+
+
 def test_no_gl_context_gets_one_sentence_and_the_cycles_route(tmp_path):
     """A Blender that cannot make a GL context (EGL given no vendor library: a real failure,
     not a stub): setup_composite(engine='EEVEE') says so in one sentence and sets up Cycles."""
