@@ -119,15 +119,16 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         name="Owner Shadows",
         description="The object still casts its shadows in its own probe (it is invisible to the "
         "probe's rays, not removed): the floor under a ball is seen shadowed from the ball, as it "
-        "is; a mirror-like object also blocks and bounces the floor's indirect light there. Off: "
-        "the paper's probe, with the owner simply hidden",
+        "is; a mirror-like or metal object also blocks and bounces the floor's indirect light there. "
+        "Off: the paper's probe, with the owner simply hidden",
         default=True,
     )
     probe_parallax: BoolProperty(
         name="Parallax Correction",
         description="Follow each reflected ray from the shading point to the surface the probe's "
-        "distance map holds (distance impostors), so nearby things reflect where they are; off: "
-        "the paper's look-up from the probe's centre",
+        "distance map holds (distance impostors), so nearby things reflect where they are, and "
+        "narrow a glossy reflection of a nearby surface to its footprint; off: the paper's "
+        "look-up from the probe's centre",
         default=True,
         update=lambda self, context: _parallax_changed(self, context),
     )

@@ -581,7 +581,9 @@ def write_report(out_dir, rows):
         "CG layer; no path tracing per frame. *platelight layered*: the CG in its own layer at "
         "4 spp, the shadows in a catcher layer at the listed samples. *platelight eevee*: "
         "`setup_composite(engine='EEVEE')`, Debevec's three layers rasterised (software GL here), "
-        "listed samples = TAA samples. *platelight (paper)*: the paper's model as written (cosine "
+        "listed samples = TAA samples. *platelight eevee baked*: the shot's shadows baked as for "
+        "*platelight baked*, then `setup_composite(engine='EEVEE', method='BAKED')`: EEVEE renders "
+        "the two emission-only layers. *platelight (paper)*: the paper's model as written (cosine "
         "falloff, diffuse and specular added in full, owner hidden in its probe, the emission "
         "lighting the phantoms), still with parallax.",
         "",
