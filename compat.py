@@ -32,6 +32,9 @@ BLENDER_4 = VERSION < (5, 0)
 Mix = namedtuple("Mix", "node factor a b result")
 # The render engine identifier of EEVEE (4.2-4.5 called the new EEVEE "EEVEE Next").
 EEVEE = "BLENDER_EEVEE_NEXT" if BLENDER_4 else "BLENDER_EEVEE"
+# EEVEE honours a view layer's material override from 5.0 on; 4.5's EEVEE renders the objects'
+# own materials (measured: its baked-shadow layer showed the lit phantoms, not the ratio).
+EEVEE_MATERIAL_OVERRIDE = not BLENDER_4
 
 
 # ---- materials and worlds

@@ -201,8 +201,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                 engine = compat.EEVEE
                 # Baked shadows are emission on the phantoms, which EEVEE renders exactly: the
                 # shot's path-traced shadow instead of EEVEE's shadow maps (docs/decisions.md).
-                # Without a current bake, Debevec's three layers.
-                if method != "BAKED":
+                # Without a current bake, or where EEVEE ignores the layer's material override
+                # (4.5), Debevec's three layers.
+                if method != "BAKED" or not compat.EEVEE_MATERIAL_OVERRIDE:
                     method = "DIFFERENTIAL"
         else:
             engine = "CYCLES"
