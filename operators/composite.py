@@ -203,6 +203,10 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                 # shot's path-traced shadow instead of EEVEE's shadow maps (docs/decisions.md).
                 # Without a current bake, or where EEVEE ignores the layer's material override
                 # (4.5), Debevec's three layers.
+                if method == "BAKED" and not compat.EEVEE_MATERIAL_OVERRIDE:
+                    self.report({"WARNING"}, "EEVEE in this Blender cannot show the baked shadows "
+                                "(it ignores a view layer's material override): it renders its own "
+                                "shadows in three layers instead; Cycles or Blender 5 show them.")
                 if method != "BAKED" or not compat.EEVEE_MATERIAL_OVERRIDE:
                     method = "DIFFERENTIAL"
         else:
