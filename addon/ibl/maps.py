@@ -48,11 +48,6 @@ def lobe_half_angle(exponent: float) -> float:
     return math.degrees(math.acos(0.5 ** (1.0 / (exponent + 1.0))))
 
 
-# Half-energy angle of each map's lobe at the default exponents (design.md): 45, 22.2, 8.35, 0
-# degrees. The roughness conversion (material/principled.py) and the footprint rule below use them.
-MAP_HALF_ANGLES = (lobe_half_angle(1.0), lobe_half_angle(8.0), lobe_half_angle(64.0), 0.0)
-
-
 def footprint_glossiness(glossiness, ratio):
     """The glossiness whose lobe is ``ratio`` times as wide (half-energy angle, piecewise linear
     between the maps' angles) as that of ``glossiness``. The maps are blurred as seen from the
@@ -105,6 +100,12 @@ class MapSettings:
                 raise PlateLightError(f"Unknown map {name!r}; maps are {', '.join(MAP_NAMES)}.")
             if not 2 <= int(height) <= 8192:
                 raise PlateLightError(f"The {name} map height must be between 2 and 8192, not {height}.")
+
+
+# Half-energy angle of each map's lobe (diffuse, glossy1, glossy2, specular) at the default
+# exponents (design.md): 45, 22.2, 8.35, 0 degrees; the footprint rule reads them.
+MAP_HALF_ANGLES = (lobe_half_angle(1.0), lobe_half_angle(MapSettings.glossy1_exponent),
+                   lobe_half_angle(MapSettings.glossy2_exponent), 0.0)
 
 
 @dataclasses.dataclass

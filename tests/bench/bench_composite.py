@@ -317,7 +317,8 @@ SHOT_SCENES = {       # in the order they run: a run stopped early reports what 
     "diffuse": ("diffuse", False), "anisotropic": ("anisotropic", False),
 }
 SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_baked", (4, 16)),
-               ("platelight eevee", "sbrdf_eevee", (4,)), ("platelight eevee baked", "sbrdf_eevee_baked", (4,)),
+               ("platelight eevee", "sbrdf_eevee", (4,)),
+               ("platelight eevee baked", "sbrdf_eevee_baked", (4,)),
                ("platelight (paper)", "sbrdf_paper", (16,)), ("catcher", "cycles", (2, 4, 16, 64, 256)))
 # measured at 96x54 and left out of the default run: no better than the one-layer default there
 EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,))}
