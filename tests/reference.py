@@ -28,6 +28,25 @@ def phong_kernel(exponent: float):
     return lambda c: (exponent + 1) / (2 * np.pi) * np.maximum(c, 0.0) ** exponent
 
 
+def ggx_kernel(roughness: float):
+    """The directions a GGX surface (alpha = roughness²) seen head-on reflects into, as a function
+    of their angle θ from the mirror direction: D at the half vector (θ/2) times Smith's G1 of the
+    outgoing direction, normalised to integrate to 1 over the sphere."""
+    a2 = roughness ** 4
+
+    def weight(c):
+        c = np.clip(c, -1.0, 1.0)
+        cos_h2 = (1.0 + c) / 2.0                      # cos²(θ/2)
+        d = a2 / (np.pi * (cos_h2 * (a2 - 1.0) + 1.0) ** 2)
+        tan2 = (1.0 - c * c) / np.maximum(c * c, 1e-300)
+        g1 = 2.0 / (1.0 + np.sqrt(1.0 + a2 * tan2))
+        return np.where(c > 0.0, d * g1, 0.0)
+
+    theta = np.linspace(0.0, np.pi / 2, 400001)
+    norm = 2 * np.pi * np.trapezoid(weight(np.cos(theta)) * np.sin(theta), theta)
+    return lambda c: weight(c) / norm
+
+
 def convolve(env: np.ndarray, kernel, out_height: int, chunk: int = 64) -> np.ndarray:
     """Brute-force spherical convolution of a lat-long map, evaluated at an output grid's texels."""
     src_dirs, sa = texel_grid(env.shape[0])
@@ -51,9 +70,12 @@ def box_downsample(env: np.ndarray, out_height: int) -> np.ndarray:
 
 
 def reference_map(env: np.ndarray, name: str, out_height: int,
-                  glossy1_exponent: float = 8.0, glossy2_exponent: float = 64.0) -> np.ndarray:
+                  glossy1_exponent: float = 8.0, glossy2_exponent: float = 64.0,
+                  ggx_roughness: float | None = None) -> np.ndarray:
     if name == "specular":
         return box_downsample(env, out_height)
+    if ggx_roughness is not None:
+        return convolve(env, ggx_kernel(ggx_roughness), out_height)
     exponent = {"diffuse": 1.0, "glossy1": glossy1_exponent, "glossy2": glossy2_exponent}[name]
     return convolve(env, phong_kernel(exponent), out_height)
 

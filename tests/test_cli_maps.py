@@ -52,6 +52,26 @@ def test_paper_mode_flags(probe, tmp_path):
     assert data["sampling"] == "paper" and data["samples"] == 1024 and data["seed"] == 3
 
 
+def test_lobes_flag_blurs_the_glossy_maps_with_ggx(probe, tmp_path):
+    """--lobes ggx: the glossy maps are those of MapSettings(lobes="ggx"), recorded in sh.json;
+    the diffuse and specular maps are the same as with the default Phong lobes."""
+    from platelight.addon.ibl import maps
+    runs = {}
+    for lobes in ("phong", "ggx"):
+        proc = support.run_cli("maps", probe, "--out", tmp_path / lobes, "--lobes", lobes)
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads((tmp_path / lobes / "sh.json").read_text())["lobes"] == lobes
+        runs[lobes] = {n: read_exr(tmp_path / lobes / f"{n}.exr") for n in maps.MAP_NAMES}
+    expected = maps.compute_maps(read_exr(probe), maps.MapSettings(lobes="ggx")).maps
+    for name in maps.MAP_NAMES:
+        np.testing.assert_allclose(runs["ggx"][name], expected[name], rtol=1e-5, atol=1e-6)
+    for name in ("diffuse", "specular"):
+        np.testing.assert_array_equal(runs["ggx"][name], runs["phong"][name])
+    assert np.abs(runs["ggx"]["glossy2"] - runs["phong"]["glossy2"]).max() > 0.1
+    bad = support.run_cli("maps", probe, "--out", tmp_path / "bad", "--lobes", "blinn")
+    assert bad.returncode != 0 and "Traceback" not in bad.stderr
+
+
 def test_missing_file(tmp_path):
     assert_one_clear_error(support.run_cli("maps", tmp_path / "nope.exr", "--out", tmp_path / "o"),
                            "File not found")

@@ -93,6 +93,28 @@ def test_exact_maps_match_brute_force_reference(sunny_probe, name):
     assert ref.relative_rms(result.maps[name], expected) < 0.005
 
 
+@pytest.mark.parametrize("name", ("glossy1", "glossy2"))
+def test_ggx_lobes_match_brute_force_ggx_convolution(sunny_probe, name):
+    """Glossy lobes "ggx": each glossy map is the probe convolved with GGX's reflection lobe at the
+    map's roughness (a direct sum over the probe's texels), and differs from the Phong map."""
+    settings = maps.MapSettings(lobes="ggx")
+    result = maps.compute_maps(sunny_probe, settings, which=(name,))
+    expected = ref.reference_map(sunny_probe, name, maps.DEFAULT_HEIGHTS[name],
+                                 ggx_roughness=maps.MAP_ROUGHNESS[name])
+    assert ref.relative_rms(result.maps[name], expected) < 0.005
+    phong = maps.compute_maps(sunny_probe, which=(name,)).maps[name]
+    assert ref.relative_rms(phong, expected) > 0.02       # so the test tells the lobes apart
+
+
+def test_ggx_lobes_white_furnace_and_the_paper_keeps_phong():
+    env = np.full((64, 128, 3), 2.5, np.float32)
+    for name, image in maps.compute_maps(env, maps.MapSettings(lobes="ggx")).maps.items():
+        np.testing.assert_allclose(image, 2.5, rtol=1e-4, err_msg=name)
+    assert maps.MapSettings(sampling="paper", lobes="ggx").glossy_lobes() == "phong"
+    with pytest.raises(maps.PlateLightError, match="glossy lobes"):
+        maps.compute_maps(env, maps.MapSettings(lobes="blinn"))
+
+
 def test_paper_mode_converges_with_samples(sunny_probe):
     """The paper's sampling is a Monte Carlo estimate: its glossy1 error shrinks with n."""
     expected = ref.reference_map(sunny_probe, "glossy1", 32)

@@ -167,6 +167,17 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         ),
         default="exact",
     )
+    glossy_lobes: EnumProperty(
+        name="Glossy Lobes",
+        description="The lobes the glossy maps are blurred with (exact sampling; the paper's "
+        "sampling keeps the paper's Phong lobes)",
+        items=(
+            ("phong", "Phong", "The paper's normalised Phong lobes, cos^8 and cos^64"),
+            ("ggx", "GGX", "The GGX reflection lobe of each map's roughness, as Cycles' Principled "
+             "BSDF reflects light (more light from around a bright sun)"),
+        ),
+        default="phong",
+    )
 
 
 classes = (PlateLightObjectSettings, PlateLightSceneSettings)

@@ -11,7 +11,7 @@ from ..wording import CLI_FLAGS, worded
 from ..hdr_io import read_probe
 from ..fileio import ensure_writable_folder, write_json_atomic
 from .equirect import from_pbrt_latlong
-from .maps import MAP_NAMES, SH_JSON_LMAX, MapSettings, compute_maps, write_maps
+from .maps import LOBES, MAP_NAMES, SH_JSON_LMAX, MapSettings, compute_maps, write_maps
 
 
 def _map_list(text: str) -> tuple:
@@ -47,6 +47,9 @@ def add_parser(sub) -> None:
                    help="map heights (default 16,32,64,128)")
     p.add_argument("--glossy1-exponent", type=float, default=8.0)
     p.add_argument("--glossy2-exponent", type=float, default=64.0)
+    p.add_argument("--lobes", choices=LOBES, default=MapSettings.lobes,
+                   help="glossy maps' lobes: the paper's Phong (default) or GGX's at each map's "
+                        "roughness (exact sampling only)")
     p.add_argument("--layout", choices=("blender", "pbrt"), default="blender",
                    help="input layout: Blender's Environment Texture (default) or pbrt's lat-long")
     p.set_defaults(func=run)
@@ -56,7 +59,7 @@ def run(args) -> int:
     out = ensure_writable_folder(args.out)
     settings = MapSettings(sampling=args.sampling, samples=args.samples, seed=args.seed,
                            glossy1_exponent=args.glossy1_exponent,
-                           glossy2_exponent=args.glossy2_exponent)
+                           glossy2_exponent=args.glossy2_exponent, lobes=args.lobes)
     if args.sizes:
         settings.heights = args.sizes
     t0 = time.perf_counter()
@@ -73,6 +76,7 @@ def run(args) -> int:
         "coefficients": result.sh.tolist(),
         "order": "l*l + l + m, real orthonormal SH (Ramamoorthi & Hanrahan convention)",
         "sampling": settings.sampling,
+        "lobes": settings.glossy_lobes(),
         "samples": settings.samples if settings.sampling == "paper" else None,
         "seed": settings.seed if settings.sampling == "paper" else None,
         "source": os.path.abspath(args.env),

@@ -33,6 +33,16 @@ MAP_NAMES = ("diffuse", "glossy1", "glossy2", "specular")
 GLOSSINESS_SCALE = len(MAP_NAMES) - 1
 MAP_GLOSSINESS = {name: k / GLOSSINESS_SCALE for k, name in enumerate(MAP_NAMES)}
 DEFAULT_HEIGHTS = {"diffuse": 16, "glossy1": 32, "glossy2": 64, "specular": 128}
+# The GGX roughness whose reflection lobe (head-on view) holds half its energy within the same
+# angle as each map's lobe (tests/test_material.py finds them by bisection): the Principled
+# conversion's knots, and the roughness the "ggx" glossy lobes prefilter with.
+MAP_ROUGHNESS = {"diffuse": 0.6436, "glossy1": 0.4429, "glossy2": 0.2702, "specular": 0.0}
+# The glossy maps' lobes: the paper's normalised Phong cos^s, or GGX's reflection lobe at the
+# map's roughness (what Cycles' Principled BSDF reflects; docs/decisions.md, "Glossy lobes").
+LOBES = ("phong", "ggx")
+# GGX's factors fall fast to about 1e-5, then only polynomially (the lobe is cut at the horizon):
+# beyond that degree the map's own grid cannot hold them anyway.
+GGX_LOBE_CUTOFF = 1e-5
 MAX_PROBE_HEIGHT = 16384
 SH_JSON_LMAX = 15
 # A lobe's SH series is cut where its factors fall below this (relative to λ_0 = 1).
@@ -81,6 +91,7 @@ class MapSettings:
     seed: int | None = 0               # paper mode: jitter seed (None: random)
     glossy1_exponent: float = 8.0
     glossy2_exponent: float = 64.0
+    lobes: str = "phong"               # glossy maps' lobes (LOBES); the paper's sampling is Phong
     heights: dict = dataclasses.field(default_factory=lambda: dict(DEFAULT_HEIGHTS))
     paper_diffuse_lmax: int = 2
     paper_glossy1_lmax: int = 15
@@ -88,6 +99,8 @@ class MapSettings:
     def validate(self) -> None:
         if self.sampling not in ("exact", "paper"):
             raise PlateLightError(f"Unknown sampling mode {self.sampling!r}; use 'exact' or 'paper'.")
+        if self.lobes not in LOBES:
+            raise PlateLightError(f"Unknown glossy lobes {self.lobes!r}; use {' or '.join(map(repr, LOBES))}.")
         if self.sampling == "paper" and not 1 <= self.samples <= 50_000_000:
             raise PlateLightError(f"{{samples}} must be between 1 and 50,000,000, not {self.samples}.",
                                   samples="The number of samples")
@@ -100,6 +113,30 @@ class MapSettings:
                 raise PlateLightError(f"Unknown map {name!r}; maps are {', '.join(MAP_NAMES)}.")
             if not 2 <= int(height) <= 8192:
                 raise PlateLightError(f"The {name} map height must be between 2 and 8192, not {height}.")
+
+
+    def glossy_lobes(self) -> str:
+        """The lobes the glossy maps are made with: the paper's sampling reproduces the paper
+        (Phong lobes, glossy2 by spatial convolution); exact sampling the chosen ones."""
+        return "phong" if self.sampling == "paper" else self.lobes
+
+    def lobe_factors(self, name: str, lmax: int) -> np.ndarray:
+        """The SH factors of map ``name``'s lobe (not the specular map's, which has none)."""
+        if name != "diffuse" and self.glossy_lobes() == "ggx":
+            return sh.ggx_lobe_factors(MAP_ROUGHNESS[name] ** 2, lmax)
+        exponent = {"diffuse": 1.0, "glossy1": self.glossy1_exponent,
+                    "glossy2": self.glossy2_exponent}[name]
+        return sh.lobe_factors(float(exponent), lmax)
+
+    def lobe_lmax(self, name: str, limit: int) -> int:
+        """Degree at which map ``name``'s lobe is converged (at most ``limit``)."""
+        if name == "diffuse":
+            return min(DIFFUSE_LMAX_EXACT, limit)
+        if self.glossy_lobes() == "ggx":
+            factors = np.abs(sh.ggx_lobe_factors(MAP_ROUGHNESS[name] ** 2, min(limit, 256)))
+            large = np.nonzero(factors >= GGX_LOBE_CUTOFF)[0]
+            return int(large[-1]) if large.size else 0
+        return lobe_lmax(getattr(self, f"{name}_exponent"), limit)
 
 
 # Half-energy angle of each map's lobe (diffuse, glossy1, glossy2, specular) at the default
@@ -196,9 +233,7 @@ def compute_maps(env: np.ndarray, settings: MapSettings | None = None,
 
     t0 = time.perf_counter()
     if settings.sampling == "exact":
-        degrees = {"diffuse": min(DIFFUSE_LMAX_EXACT, limit),
-                   "glossy1": lobe_lmax(settings.glossy1_exponent, limit),
-                   "glossy2": lobe_lmax(settings.glossy2_exponent, limit)}
+        degrees = {name: settings.lobe_lmax(name, limit) for name in ("diffuse", "glossy1", "glossy2")}
         need = max([SH_JSON_LMAX] + [degrees[n] for n in which if n in degrees])
         coeffs = sh.project_exact(env, min(need, limit))
     else:
@@ -206,8 +241,6 @@ def compute_maps(env: np.ndarray, settings: MapSettings | None = None,
         need = max(SH_JSON_LMAX, settings.paper_glossy1_lmax, settings.paper_diffuse_lmax)
         coeffs = sh.project_paper(env, need, settings.samples, settings.seed)
     timings["sh"] = time.perf_counter() - t0
-    exponents = {"diffuse": 1.0, "glossy1": settings.glossy1_exponent,
-                 "glossy2": settings.glossy2_exponent}
 
     for name in which:
         t0 = time.perf_counter()
@@ -215,11 +248,10 @@ def compute_maps(env: np.ndarray, settings: MapSettings | None = None,
         if name == "specular":
             image = downsample_area(env, height)
         elif name == "glossy2" and settings.sampling == "paper":
-            image = convolve_spatial(env, exponents[name], height, source_height=2 * height)
+            image = convolve_spatial(env, settings.glossy2_exponent, height, source_height=2 * height)
         else:
             lmax = min(degrees[name], coeffs_lmax(coeffs))
-            factors = sh.lobe_factors(exponents[name], lmax)
-            image = sh.synthesize(coeffs[: (lmax + 1) ** 2], height, factors)
+            image = sh.synthesize(coeffs[: (lmax + 1) ** 2], height, settings.lobe_factors(name, lmax))
         negative = image < 0
         if negative.any():
             stats[f"{name}_negative_texels"] = int(negative.any(axis=-1).sum())

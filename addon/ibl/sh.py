@@ -181,6 +181,32 @@ def lobe_factors(exponent: float, lmax: int) -> np.ndarray:
     return out
 
 
+@lru_cache(maxsize=64)
+def ggx_lobe_factors(alpha: float, lmax: int, steps: int = 16384) -> np.ndarray:
+    """λ_l of the lobe of directions a GGX surface (roughness² = ``alpha``) reflects a head-on
+    view into, normalised (λ_0 = 1): weight D(h)·G1(l)/4 at the angle θ from the mirror direction,
+    h halfway (θ/2), Smith's G1 for the outgoing direction (the view's is 1). Midpoint rule in θ
+    on [0, π/2], fine enough for alpha down to 0.01 (the lobe's width is about alpha radians)."""
+    theta = (np.arange(steps) + 0.5) * (0.5 * np.pi / steps)
+    a2 = float(alpha) ** 2
+    cos_h = np.cos(0.5 * theta)
+    d = a2 / (np.pi * (cos_h * cos_h * (a2 - 1.0) + 1.0) ** 2)
+    smith = (np.sqrt(1.0 + a2 * np.tan(theta) ** 2) - 1.0) / 2.0
+    wt = d / (1.0 + smith) * np.sin(theta)
+    wt /= wt.sum()
+    t = np.cos(theta)
+    out = np.empty(lmax + 1)
+    p_prev, p = np.ones_like(t), t.copy()
+    out[0] = 1.0
+    if lmax >= 1:
+        out[1] = (wt * p).sum()
+    for l in range(2, lmax + 1):
+        p_prev, p = p, ((2 * l - 1) * t * p - (l - 1) * p_prev) / l
+        out[l] = (wt * p).sum()
+    out.setflags(write=False)          # cached: callers share it
+    return out
+
+
 def synthesize(coeffs: np.ndarray, height: int, factors: np.ndarray | None = None) -> np.ndarray:
     """Evaluate Σ λ_l c_lm Y_lm at the texel centres of a (height, 2·height) lat-long map."""
     lmax = int(round(np.sqrt(coeffs.shape[0]))) - 1

@@ -30,11 +30,13 @@ import math
 
 import numpy as np
 
+from ..ibl.maps import MAP_GLOSSINESS, MAP_NAMES, MAP_ROUGHNESS
 from .params import SBRDFParams
 
-# Fitted by tests/test_material.py::test_roughness_knots_match_the_ggx_lobes (brute force).
-_ROUGHNESS_KNOTS = np.array([0.0, 0.2702, 0.4429, 0.6436])
-_GLOSS_KNOTS = np.array([1.0, 2 / 3, 1 / 3, 0.0])
+# Each map's roughness and glossiness (fitted by tests/test_material.py::
+# test_roughness_knots_match_the_ggx_lobes, brute force).
+_ROUGHNESS_KNOTS = np.array([MAP_ROUGHNESS[name] for name in reversed(MAP_NAMES)])
+_GLOSS_KNOTS = np.array([MAP_GLOSSINESS[name] for name in reversed(MAP_NAMES)])
 METAL_THRESHOLD = 0.2
 # Fitted by tests/test_material.py::test_fresnel_falloff_knots_follow_the_ggx_albedo (brute force).
 _FALLOFF_ROUGHNESS = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0])

@@ -257,7 +257,8 @@ class ProbeBake:
         heights = {name: min(h, height) for name, h in DEFAULT_HEIGHTS.items()}
         if sized_height:
             heights["specular"] = sized_height
-        return MapSettings(sampling=self.scene.platelight.sampling, heights=heights)
+        return MapSettings(sampling=self.scene.platelight.sampling, heights=heights,
+                           lobes=self.scene.platelight.glossy_lobes)
 
     # ---- hashing
     def probe_hash(self, ob, origin, maps, owner, grid):

@@ -14,7 +14,7 @@ from ...addon.bake.layout import lookup_filenames
 from ...addon.bake.needs import OWNER_INDIRECT
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
 from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
-from ...addon.ibl.maps import map_filename
+from ...addon.ibl.maps import MapSettings, map_filename
 
 
 def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner=None, grid=False):
@@ -29,6 +29,7 @@ def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner
     indirect = {"owner": owner} if owner == OWNER_INDIRECT else {}
     # A probe with an irradiance grid is another bake; one without hashes as before.
     with_grid = {"irradiance_grid": GRID_VERSION} if grid else {}
+    lobes = _lobes_key(MapSettings(sampling=settings.sampling, lobes=settings.glossy_lobes))
     return content_hash({
         **sized, **indirect, **with_grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
@@ -36,10 +37,18 @@ def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
                      settings.probe_fast_world, settings.probe_owner_shadows,
                      settings.probe_distance],
+        **lobes,
         "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
                    cycles.transmission_bounces],
         "seen": seen,
     })
+
+
+def _lobes_key(map_settings):
+    """GGX glossy lobes make other maps; the paper's Phong lobes hash as before (older records stay
+    valid)."""
+    lobes = map_settings.glossy_lobes()
+    return {"lobes": lobes} if lobes != MapSettings.lobes else {}
 
 
 def world_maps_hash(scene, world_digest, image, map_settings):
@@ -51,7 +60,7 @@ def world_maps_hash(scene, world_digest, image, map_settings):
                          "strength": image.strength if image else None,
                          "rotation": image.rotation if image else None,
                          "heights": map_settings.heights,
-                         "sampling": map_settings.sampling,
+                         "sampling": map_settings.sampling, **_lobes_key(map_settings),
                          "samples": None if source else scene.platelight.probe_samples,
                          "probe_height": None if source else scene.platelight.probe_height})
 

@@ -12,7 +12,7 @@ Run: `make bench` (480x270), `make bench-960`, `make bench-1080`, `make bench-gp
 the GPU, EEVEE on a real GPU; only where one exists). Environment: PLATELIGHT_BENCH_SIZE=WxH,
 PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
 PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
-PLATELIGHT_BENCH_EXTRA=layered (the layered route too), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
+PLATELIGHT_BENCH_EXTRA=layered,ggx (the layered route, the GGX glossy lobes), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
 subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
 2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_ROWS (the rows file's name beside the report; default <report>_rows.json,
 published with it so anyone can re-plot or extend it), PLATELIGHT_BENCH_KEEP_ROWS=1 (re-run a
@@ -48,7 +48,7 @@ MATERIALS = {
     "anisotropic": dict(colour=(0.9, 0.9, 0.9), roughness=0.3, metallic=1.0, anisotropic=0.8),
 }
 # setup_composite's arguments per route (the rest are its defaults)
-SETUP = {"sbrdf": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
+SETUP = {"sbrdf": {}, "sbrdf_ggx": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
          "sbrdf_layered": dict(method="LAYERED", cg_samples=4),
          "sbrdf_baked": dict(method="BAKED"),      # listed samples: the CG layer's
          "sbrdf_eevee": dict(engine="EEVEE"),
@@ -188,7 +188,7 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, ca
     elif route == "sunsky":
         assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
     elif route.startswith("sbrdf"):
-        bake_s = sbrdf_sphere(bpy, scene, sphere, out_path, paper=route == "sbrdf_paper")
+        bake_s = sbrdf_sphere(bpy, scene, sphere, out_path, paper=route == "sbrdf_paper", route=route)
         bake_s += bake_route_shadows(bpy, route)
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(**setup_arguments(route, samples)) == {"FINISHED"}
@@ -214,7 +214,7 @@ def setup_arguments(route, samples):
     return arguments
 
 
-def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False):
+def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False, route="sbrdf"):
     """The paper's CG: the sphere's Principled settings converted to the PlateLight SBRDF, shaded
     from its own probe (baked from its centre: floor + world). ``paper``: the paper's model as
     written (cosine falloff g', diffuse and specular added in full, the owner hidden in its probe)
@@ -223,6 +223,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False):
 
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
     scene.platelight.probe_owner_shadows = not paper
+    scene.platelight.glossy_lobes = "ggx" if route == "sbrdf_ggx" else "phong"
     sphere.platelight.enabled = True
     bpy.context.view_layer.objects.active = sphere
     sphere.select_set(True)
@@ -321,7 +322,9 @@ SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_bak
                ("platelight eevee baked", "sbrdf_eevee_baked", (4,)),
                ("platelight (paper)", "sbrdf_paper", (16,)), ("catcher", "cycles", (2, 4, 16, 64, 256)))
 # measured at 96x54 and left out of the default run: no better than the one-layer default there
-EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,))}
+EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,)),
+                # the glossy maps blurred with GGX's lobes (scene setting Glossy Lobes)
+                "ggx": ("platelight ggx lobes", "sbrdf_ggx", (4, 16))}
 SHOT_REFERENCE = "catcher"
 # The shot: the camera orbits 20 degrees about the sphere over 24 frames; rendered and scored are
 # its first and last frames (scene frames 1 and 2 of the benchmark's plate sequence).
@@ -402,7 +405,7 @@ def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, ou
     t0 = time.perf_counter()
     bake_s = 0.0
     if route.startswith("sbrdf"):
-        bake_s = sbrdf_sphere(bpy, scene, sphere, out_dir / "frame", paper=route == "sbrdf_paper")
+        bake_s = sbrdf_sphere(bpy, scene, sphere, out_dir / "frame", paper=route == "sbrdf_paper", route=route)
         bake_s += bake_route_shadows(bpy, route)
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(**setup_arguments(route, samples)) == {"FINISHED"}
