@@ -191,8 +191,10 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             current = baked_is_current(scene) if baked is not None else None
             method = "BAKED" if current else "CATCHER"
             if current is False:
-                self.report({"WARNING"}, "The baked shadows do not match the scene any more: the "
-                            "Shadow Catcher renders them instead; run Bake Shadows again to use them.")
+                # EEVEE has no shadow catcher: its fallback renders Debevec's three layers
+                fallback = "EEVEE renders its own" if self.engine == "EEVEE" else "the Shadow Catcher renders them"
+                self.report({"WARNING"}, "The baked shadows do not match the scene any more: "
+                            f"{fallback} instead; run Bake Shadows again to use them.")
         if self.engine == "EEVEE":
             if not eevee_available():
                 self.report({"WARNING"}, NO_GL_SENTENCE)

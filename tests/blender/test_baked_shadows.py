@@ -84,6 +84,10 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
     assert bpy.ops.platelight.setup_composite() == {"FINISHED"}
     said = capfd.readouterr().out
     assert "(catcher, cycles)" in said and "Shadow Catcher renders them instead" in said
+    # EEVEE has no shadow catcher: the warning names what it renders instead
+    assert bpy.ops.platelight.setup_composite(engine="EEVEE") == {"FINISHED"}
+    assert "EEVEE renders its own instead" in capfd.readouterr().out
+    assert bpy.ops.platelight.setup_composite() == {"FINISHED"}
     assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
     assert probe_renders() > renders
 
