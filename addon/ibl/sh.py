@@ -168,17 +168,7 @@ def lobe_factors(exponent: float, lmax: int) -> np.ndarray:
     n = int(max(32, (exponent + lmax) / 2 + 8))
     nodes, weights = np.polynomial.legendre.leggauss(n)
     t = 0.5 * (nodes + 1.0)
-    wt = 0.5 * weights * t ** exponent * (exponent + 1.0)
-    p_prev, p = np.ones_like(t), t.copy()
-    out = np.empty(lmax + 1)
-    out[0] = wt.sum()
-    if lmax >= 1:
-        out[1] = (wt * p).sum()
-    for l in range(2, lmax + 1):
-        p_prev, p = p, ((2 * l - 1) * t * p - (l - 1) * p_prev) / l
-        out[l] = (wt * p).sum()
-    out.setflags(write=False)          # cached: callers share it
-    return out
+    return _legendre_moments(t, 0.5 * weights * t ** exponent * (exponent + 1.0), lmax)
 
 
 @lru_cache(maxsize=64)
@@ -193,17 +183,21 @@ def ggx_lobe_factors(alpha: float, lmax: int, steps: int = 16384) -> np.ndarray:
     d = a2 / (np.pi * (cos_h * cos_h * (a2 - 1.0) + 1.0) ** 2)
     smith = (np.sqrt(1.0 + a2 * np.tan(theta) ** 2) - 1.0) / 2.0
     wt = d / (1.0 + smith) * np.sin(theta)
-    wt /= wt.sum()
-    t = np.cos(theta)
-    out = np.empty(lmax + 1)
+    return _legendre_moments(np.cos(theta), wt / wt.sum(), lmax)
+
+
+def _legendre_moments(t: np.ndarray, weights: np.ndarray, lmax: int) -> np.ndarray:
+    """Σ weights·P_l(t) for l = 0..lmax (Legendre recurrence), read-only: the factor functions
+    cache them and their callers share the array."""
     p_prev, p = np.ones_like(t), t.copy()
-    out[0] = 1.0
+    out = np.empty(lmax + 1)
+    out[0] = weights.sum()
     if lmax >= 1:
-        out[1] = (wt * p).sum()
+        out[1] = (weights * p).sum()
     for l in range(2, lmax + 1):
         p_prev, p = p, ((2 * l - 1) * t * p - (l - 1) * p_prev) / l
-        out[l] = (wt * p).sum()
-    out.setflags(write=False)          # cached: callers share it
+        out[l] = (weights * p).sum()
+    out.setflags(write=False)
     return out
 
 
