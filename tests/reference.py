@@ -43,7 +43,8 @@ def ggx_kernel(roughness: float):
         return np.where(c > 0.0, d * g1, 0.0)
 
     theta = np.linspace(0.0, np.pi / 2, 400001)
-    norm = 2 * np.pi * np.trapezoid(weight(np.cos(theta)) * np.sin(theta), theta)
+    f = weight(np.cos(theta)) * np.sin(theta)
+    norm = 2 * np.pi * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(theta))     # trapezoids (numpy 1 and 2)
     return lambda c: weight(c) / norm
 
 
