@@ -9,7 +9,7 @@ roughness's glossiness (addon/material/principled.py), looked up along the mirro
 the glossy maps blurred by the paper's Phong lobes or by GGX's (MapSettings.lobes). PSNR over the
 sphere's pixels, peak = the truth's 99.5th percentile (as docs/bench/composite.md).
 
-Run: `.venv/bin/python tests/bench/bench_lobes.py` (about 10 minutes on 2 cores); writes
+Run: `.venv/bin/python tests/bench/bench_lobes.py` (about 3 minutes on 2 cores); writes
 docs/bench/lobes.md."""
 from __future__ import annotations
 
