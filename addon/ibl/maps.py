@@ -114,7 +114,6 @@ class MapSettings:
             if not 2 <= int(height) <= 8192:
                 raise PlateLightError(f"The {name} map height must be between 2 and 8192, not {height}.")
 
-
     def glossy_lobes(self) -> str:
         """The lobes the glossy maps are made with: the paper's sampling reproduces the paper
         (Phong lobes, glossy2 by spatial convolution); exact sampling the chosen ones."""
