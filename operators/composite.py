@@ -190,11 +190,6 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         if method == "AUTO":
             current = baked_is_current(scene) if baked is not None else None
             method = "BAKED" if current else "CATCHER"
-            if current is False:
-                # EEVEE has no shadow catcher: its fallback renders Debevec's three layers
-                fallback = "EEVEE renders its own" if self.engine == "EEVEE" else "the Shadow Catcher renders them"
-                self.report({"WARNING"}, "The baked shadows do not match the scene any more: "
-                            f"{fallback} instead; run Bake Shadows again to use them.")
         if self.engine == "EEVEE":
             if not eevee_available():
                 self.report({"WARNING"}, NO_GL_SENTENCE)
@@ -213,6 +208,12 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                     method = "DIFFERENTIAL"
         else:
             engine = "CYCLES"
+        if current is False:
+            # said once the engine is known: EEVEE has no shadow catcher (its three layers instead),
+            # and a machine without GL falls back to Cycles' catcher
+            fallback = "EEVEE renders its own" if engine == compat.EEVEE else "the Shadow Catcher renders them"
+            self.report({"WARNING"}, "The baked shadows do not match the scene any more: "
+                        f"{fallback} instead; run Bake Shadows again to use them.")
 
         # --- build
         scene.render.engine = engine
