@@ -132,9 +132,8 @@ class MapSettings:
         if name == "diffuse":
             return min(DIFFUSE_LMAX_EXACT, limit)
         if self.glossy_lobes() == "ggx":
-            factors = np.abs(sh.ggx_lobe_factors(MAP_ROUGHNESS[name] ** 2, min(limit, 256)))
-            large = np.nonzero(factors >= GGX_LOBE_CUTOFF)[0]
-            return int(large[-1]) if large.size else 0
+            return _last_degree_above(sh.ggx_lobe_factors(MAP_ROUGHNESS[name] ** 2, min(limit, 256)),
+                                      GGX_LOBE_CUTOFF)
         return lobe_lmax(getattr(self, f"{name}_exponent"), limit)
 
 
@@ -184,8 +183,12 @@ def lobe_lmax(exponent: float, limit: int) -> int:
 
     Not the first small factor: for an even integer s the even factors above s vanish exactly
     while the odd ones only decay polynomially (s = 8: λ_10 = 0 but λ_11 ≈ −1e-4)."""
-    factors = np.abs(sh.lobe_factors(float(exponent), min(limit, 256)))
-    large = np.nonzero(factors >= LOBE_CUTOFF)[0]
+    return _last_degree_above(sh.lobe_factors(float(exponent), min(limit, 256)), LOBE_CUTOFF)
+
+
+def _last_degree_above(factors: np.ndarray, cutoff: float) -> int:
+    """The highest degree whose factor is at least ``cutoff`` in magnitude (0 if none)."""
+    large = np.nonzero(np.abs(factors) >= cutoff)[0]
     return int(large[-1]) if large.size else 0
 
 

@@ -266,8 +266,8 @@ class ProbeBake:
         seen = sorted((o.name_full, self._describer.seen_digest(o, frame)) for o in self.scene.objects
                       if o is not ob and o is not self._renderer.camera and renderable(o, self.view_layer)
                       and self._in_range(origin, o))
-        return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.heights.get(ob.name),
-                          owner, grid)
+        return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.map_settings(),
+                          self.heights.get(ob.name), owner, grid)
 
     # ---- steps
     def start(self):

@@ -17,11 +17,13 @@ from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
 from ...addon.ibl.maps import MapSettings, map_filename
 
 
-def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner=None, grid=False):
+def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_height=None, owner=None,
+               grid=False):
     """The hash of one object's probe: where it sits, which maps, the world, the bake settings,
     the probe's height when it is sized to the object on screen, Cycles' bounces and ``seen``
     (sorted (object, description digest) of what the probe sees); ``owner`` and ``grid`` as the
-    bake decided them (needs.owner_visibility, needs.wants_irradiance_grid)."""
+    bake decided them (needs.owner_visibility, needs.wants_irradiance_grid); the glossy lobes the
+    bake's ``map_settings`` blur with."""
     settings = scene.platelight
     cycles = scene.cycles
     sized = {"sized_height": sized_height} if sized_height else {}     # older records stay valid
@@ -29,7 +31,6 @@ def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner
     indirect = {"owner": owner} if owner == OWNER_INDIRECT else {}
     # A probe with an irradiance grid is another bake; one without hashes as before.
     with_grid = {"irradiance_grid": GRID_VERSION} if grid else {}
-    lobes = _lobes_key(MapSettings(sampling=settings.sampling, lobes=settings.glossy_lobes))
     return content_hash({
         **sized, **indirect, **with_grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
@@ -37,7 +38,7 @@ def probe_hash(scene, origin, maps, world_digest, seen, sized_height=None, owner
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
                      settings.probe_fast_world, settings.probe_owner_shadows,
                      settings.probe_distance],
-        **lobes,
+        **_lobes_key(map_settings),
         "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
                    cycles.transmission_bounces],
         "seen": seen,
