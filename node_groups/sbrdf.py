@@ -12,18 +12,23 @@ maps and outputs the shader. The material wires the two together (operators/mate
     rho_s' = rho_s + (1 - rho_s) f,  n' = n + (1 - n) f,  g' = g + (1 - g) f
     w   = lerp(1, g', P),  rho_d' = lerp(rho_d (1 - rho_s'), rho_d, P)      P = Paper Falloff
           (0, the default: no cosine, layered energy as Principled; 1: the paper's Eq 1, 7)
-    Lr  = alpha rho_d' D(N) + rho_s' w S(p/|p|, n') + (1 - alpha) rho_d (1 - rho_s') T(t, n') + E
+    d   = normalize(p/|p| + (1 - P) s(n', N.p/|p|) N)    the look-up tilted towards N at grazing
+          views, where the surface's horizon cuts the lobe (addon/ibl/lobe_tilt.py); P = 1: p/|p|
+    Lr  = alpha rho_d' D(N) + rho_s' w S(d, n') + (1 - alpha) rho_d (1 - rho_s') T(t, n') + E
 """
 from __future__ import annotations
 
 import bpy
 
 from ..addon import names
+from ..addon.ibl.lobe_tilt import MU, TILT
+from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_NAMES
 from ..addon.material.params import PARAMETERS
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
-VERSION = 2  # 2: Paper Falloff input (existing instances upgraded with 1 = their old look)
+# 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt
+VERSION = 3
 PHI_MIN = 1.0e-4
 
 # The lookup outputs, consumed by name by every "PlateLight Probe" group.
@@ -162,7 +167,11 @@ def _build(tree):
         g.link(refracted, gout.inputs[f"Refraction Direction {channel}"])
 
     g.link(n, gout.inputs["Diffuse Direction"])
-    g.link(g.vmath("NORMALIZE", peak), gout.inputs["Specular Direction"])
+    lookup = g.vmath("NORMALIZE", peak)
+    offset = g.math("MULTIPLY", _tilt_offset(g, gloss, g.vmath("DOT_PRODUCT", n, lookup)),
+                    g.math("SUBTRACT", 1.0, inp["Paper Falloff"]))
+    g.link(g.vmath("NORMALIZE", g.vmath("ADD", lookup, g.vmath("SCALE", n, scale=offset))),
+           gout.inputs["Specular Direction"])
     g.link(gloss, gout.inputs["Map Glossiness"])
     g.link(diffuse_w, gout.inputs["Diffuse Weight"])
     g.link(specular_w, gout.inputs["Specular Weight"])
@@ -172,3 +181,34 @@ def _build(tree):
     g.link(falloff_f, gout.inputs["Falloff"])
     gin.location = (-400, 0)
     gout.location = (200 * (g.column // 12 + 1), 0)
+
+
+def _tilt_offset(g, glossiness, mu):
+    """lobe_tilt.tilt_offset in nodes: each map's row as a curve over mu = N.d, blended with the
+    maps' tent weights at glossiness n'."""
+    position = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
+                      float(GLOSSINESS_SCALE))
+    mu = g.math("MINIMUM", g.math("MAXIMUM", mu, 0.0), 1.0)
+    total = None
+    for k, name in enumerate(MAP_NAMES):
+        if not any(TILT[name]):
+            continue
+        weight = g.math("MAXIMUM", g.math("SUBTRACT", 1.0, g.math("ABSOLUTE",
+                                                                  g.math("SUBTRACT", position, float(k)))), 0.0)
+        term = g.math("MULTIPLY", weight, _curve(g, MU, TILT[name], mu))
+        total = term if total is None else g.math("ADD", total, term)
+    return total
+
+
+def _curve(g, xs, ys, value):
+    """A Float Curve through (xs, ys), linear between the points and flat beyond them."""
+    node = g.node("ShaderNodeFloatCurve")
+    curve = node.mapping.curves[0]
+    while len(curve.points) < len(xs):
+        curve.points.new(0.0, 0.0)
+    for point, x, y in zip(curve.points, xs, ys):
+        point.location = (x, y)
+        point.handle_type = "VECTOR"
+    node.mapping.update()
+    g.link(value, node.inputs["Value"])
+    return node.outputs["Value"]

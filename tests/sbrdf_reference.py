@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from platelight.addon.ibl.lobe_tilt import tilt_offset
+
 ORDER = ("diffuse", "glossy1", "glossy2", "specular")
 
 
@@ -92,6 +94,10 @@ def sbrdf(P, view, maps, p):
     rho_d_layered = paper * rho_d + (1 - paper) * rho_d * (1 - rho_s)
     lr = a * rho_d_layered * bilinear(maps["diffuse"], N)
     spec_dir = _norm(peak)
+    # the look-up tilt towards N (its rule is checked against brute force in test_lobe_tilt.py);
+    # the paper's model looks up along p
+    tilt = tilt_offset(n2[..., 0], np.clip(_dot(N, spec_dir)[..., 0], 0.0, 1.0))[..., None]
+    spec_dir = _norm(spec_dir + (1 - paper) * tilt * N)
     lr = lr + rho_s * g2 * blend(maps, spec_dir, n2)
     refr = np.zeros_like(lr)
     dirs = [spec_dir, N]

@@ -52,9 +52,11 @@ PARAMETERS = (
               "Blends the Lafortune peak towards the viewer (C = (1, 1, 1)): the paper's retro-reflector"),
     ParamSpec("paper_falloff", "Paper Falloff", "float", 0.0, 0.0, 1.0,
               "1: the paper's Eq 1 and 7 as written: the cosine falloff g' = g + (1 - g) f darkens "
-              "the specular term towards the rim, and the diffuse term ignores the specular one; "
-              "0: no cosine (the maps already integrate the lobe) and the diffuse term gets "
-              "rho_d (1 - rho_s'), which matches a path-traced Principled BSDF; blends in between"),
+              "the specular term towards the rim, the diffuse term ignores the specular one, and "
+              "the maps are looked up along the peak; 0: no cosine (the maps already integrate the "
+              "lobe), the diffuse term gets rho_d (1 - rho_s'), which matches a path-traced "
+              "Principled BSDF, and glossy look-ups tilt towards the normal at grazing views, where "
+              "the surface's horizon cuts the lobe; blends in between"),
 )
 SPEC = {p.name: p for p in PARAMETERS}
 

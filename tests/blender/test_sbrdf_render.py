@@ -93,4 +93,5 @@ def test_node_group_matches_numpy_reference(rendered, case):
     got = image[..., :3].astype(np.float64)
     rel = np.abs(got - want) / np.maximum(np.abs(want), 1e-2)
     worst = rel[mask].max()
-    assert worst < 1e-3, f"{case}: worst relative error {worst:.2e} over {mask.sum()} pixels"
+    # 2e-3: Blender evaluates the look-up tilt's Float Curves from 256-entry tables
+    assert worst < 2e-3, f"{case}: worst relative error {worst:.2e} over {mask.sum()} pixels"
