@@ -5,9 +5,10 @@ A metal sphere (no Fresnel or albedo: the lobe's shape alone) seen from three di
 bundled HDRI. Truth: for every pixel, the radiance integrated over the probe's texels (256 rows)
 with Cycles' GGX microfacet lobe (D, height-correlated Smith G2) at that pixel's view, over the
 whole hemisphere above the surface. PlateLight: the maps blended by design.md's glossiness rule at the
-roughness's glossiness (addon/material/principled.py), looked up along the mirror direction, with
-the glossy maps blurred by the paper's Phong lobes or by GGX's (MapSettings.lobes). PSNR over the
-sphere's pixels, peak = the truth's 99.5th percentile (as docs/bench/composite.md).
+roughness's glossiness (addon/material/principled.py), with the glossy maps blurred by the paper's
+Phong lobes or by GGX's (MapSettings.lobes), looked up along the mirror direction R (the paper) or
+along R tilted towards the normal (the look-up tilt, addon/ibl/lobe_tilt.py: the shader's default).
+PSNR over the sphere's pixels, peak = the truth's 99.5th percentile (as docs/bench/composite.md).
 
 Run: `.venv/bin/python tests/bench/bench_lobes.py` (about 3 minutes on 2 cores); writes
 docs/bench/lobes.md."""
@@ -24,7 +25,7 @@ import support  # noqa: E402,F401
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 from platelight.addon.ibl import equirect as eq  # noqa: E402
-from platelight.addon.ibl import maps  # noqa: E402
+from platelight.addon.ibl import lobe_tilt, maps  # noqa: E402
 from platelight.addon.material.principled import roughness_to_glossiness  # noqa: E402
 
 HDRIS = ("city", "courtyard", "sunset")
@@ -81,10 +82,18 @@ def blended(maps_by_name, glossiness, directions):
                for name, w in weights.items() if w > 0)
 
 
+def lookups(normals, view, glossiness, tilt):
+    """The maps' look-up directions: the mirror direction, tilted towards N with ``tilt``."""
+    reflected = 2 * (normals @ view)[:, None] * normals - view
+    return lobe_tilt.tilted(reflected, normals, glossiness) if tilt else reflected
+
+
 def psnr(image, truth):
+    """Luminance PSNR, both images clipped at the peak as bench_composite.psnr clips them."""
     lum_image, lum_truth = image @ LUMINANCE, truth @ LUMINANCE
     peak = np.percentile(lum_truth, 99.5)
-    return float(10 * np.log10(peak ** 2 / np.mean((lum_image - lum_truth) ** 2)))
+    error = np.clip(lum_image, 0, peak) - np.clip(lum_truth, 0, peak)
+    return float(10 * np.log10(peak ** 2 / np.mean(error ** 2)))
 
 
 def main(out_dir: pathlib.Path) -> None:
@@ -103,11 +112,13 @@ def main(out_dir: pathlib.Path) -> None:
             glossiness = roughness_to_glossiness(roughness)
             scores = {}
             for lobes, found in lobe_maps.items():
-                scores[lobes] = float(np.mean([
-                    psnr(blended(found, glossiness, 2 * (normals @ view)[:, None] * normals - view), t)
-                    for (normals, view), t in zip(views, truths)]))
+                for tilt in (False, True):
+                    scores[(lobes, tilt)] = float(np.mean([
+                        psnr(blended(found, glossiness, lookups(normals, view, glossiness, tilt)), t)
+                        for (normals, view), t in zip(views, truths)]))
             rows.append((name, roughness, glossiness, scores))
-            print(f"{name:10s} r {roughness:.2f}  " + "  ".join(f"{k} {v:6.2f} dB" for k, v in scores.items())
+            print(f"{name:10s} r {roughness:.2f}  " + "  ".join(f"{k}{' tilted' * t} {v:6.2f} dB"
+                                                                for (k, t), v in scores.items())
                   + f"  ({time.perf_counter() - t0:.0f} s)", flush=True)
     write_report(out_dir / "lobes.md", rows)
 
@@ -117,15 +128,21 @@ def write_report(path, rows):
         "# Glossy lobes: four blurred maps against GGX (issue 11)", "",
         (__doc__.split("\n\n")[1].replace("\n", " ")), "",
         "Produced by `tests/bench/bench_lobes.py`.", "",
-        "| HDRI | roughness | glossiness | Phong lobes (dB) | GGX lobes (dB) | GGX − Phong |",
-        "|---|---:|---:|---:|---:|---:|",
+        "| HDRI | roughness | glossiness | Phong, R (dB) | GGX, R | Phong, tilted (default) | GGX, tilted |",
+        "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for name, roughness, glossiness, scores in rows:
-        lines.append(f"| {name} | {roughness:.2f} | {glossiness:.3f} | {scores['phong']:.2f} | "
-                     f"{scores['ggx']:.2f} | {scores['ggx'] - scores['phong']:+.2f} |")
-    gains = np.array([s["ggx"] - s["phong"] for *_, s in rows])
-    lines += ["", f"Mean gain of GGX lobes over all rows: {gains.mean():+.2f} dB "
-              f"(range {gains.min():+.2f} to {gains.max():+.2f}).", ""]
+        lines.append(f"| {name} | {roughness:.2f} | {glossiness:.3f} | {scores[('phong', False)]:.2f} | "
+                     f"{scores[('ggx', False)]:.2f} | {scores[('phong', True)]:.2f} | "
+                     f"{scores[('ggx', True)]:.2f} |")
+
+    def mean_gain(a, b):
+        gains = np.array([s[a] - s[b] for *_, s in rows])
+        return f"{gains.mean():+.2f} dB (range {gains.min():+.2f} to {gains.max():+.2f})"
+    lines += ["", "Mean gain over all rows: GGX lobes over Phong, along R: "
+              f"{mean_gain(('ggx', False), ('phong', False))}; the tilt, Phong lobes: "
+              f"{mean_gain(('phong', True), ('phong', False))}; the tilt, GGX lobes: "
+              f"{mean_gain(('ggx', True), ('ggx', False))}.", ""]
     path.write_text("\n".join(lines))
 
 
