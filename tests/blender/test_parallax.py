@@ -176,6 +176,7 @@ def test_glossy_lookups_narrow_with_their_footprint_as_numpy_says(bpy_clean, tmp
 
     import sbrdf_scene as sc
     from bl_ext.dev.platelight.node_groups import sbrdf_material as sm
+    from platelight.addon.ibl.lobe_tilt import tilted
     from platelight.addon.ibl.maps import footprint_glossiness, map_weights
     from platelight.addon.material.params import SBRDFParams
 
@@ -205,7 +206,8 @@ def test_glossy_lookups_narrow_with_their_footprint_as_numpy_says(bpy_clean, tmp
     N = P / np.linalg.norm(P, axis=1, keepdims=True)
     view = np.broadcast_to(sc.VIEW, N.shape)
     reflected = 2 * (view * N).sum(1, keepdims=True) * N - view
-    _, ratio = dm.parallax_search(dist, P, reflected)
+    # the group looks up along R tilted towards N (Fresnel off: n' = the glossiness)
+    _, ratio = dm.parallax_search(dist, P, tilted(reflected, N, glossiness))
     narrowed = footprint_glossiness(glossiness, ratio)
     want = np.array([[map_weights(n)[name] for name in ("diffuse", "glossy1", "glossy2")] for n in narrowed])
     got = image[..., :3][mask].astype(np.float64)
