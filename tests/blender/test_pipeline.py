@@ -30,6 +30,7 @@ import pytest
 
 import support
 from bake_scenes import material
+from platelight.addon.ibl.lobe_tilt import tilt_offset
 from sbrdf_scene import noise_free_emission_render
 from support import EXT_MODULE
 from support import compat
@@ -95,9 +96,14 @@ def _sbrdf(maps, N, p):
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
     n2 = p["glossiness"] + (1 - p["glossiness"]) * f
     g2 = g + (1 - g) * f
-    g2 = 1.0 + p.get("paper_falloff", 0.0) * (g2 - 1.0)   # 0: no cosine; 1: the paper's g'
+    paper = p.get("paper_falloff", 0.0)
+    g2 = 1.0 + paper * (g2 - 1.0)                      # 0: no cosine; 1: the paper's g'
+    # the look-up tilt towards N at grazing views (addon/ibl/lobe_tilt.py); the paper: along p
+    peak = _unit(peak)
+    mu = np.clip(np.sum(N * peak, axis=-1), 0.0, 1.0)
+    peak = _unit(peak + (1 - paper) * tilt_offset(n2[..., 0], mu)[..., None] * N)
     if "diffuse" in maps:
-        paper = p.get("paper_falloff", 0.0)   # 0: the diffuse layer gets what the specular leaves
+        # paper 0: the diffuse layer gets what the specular leaves
         rho_d = np.asarray(p["diffuse_albedo"]) * (paper + (1 - paper) * (1 - rho_s))
         lr = rho_d * _lookup(maps["diffuse"], N)
     else:                                              # a mirror's bake has no diffuse map
