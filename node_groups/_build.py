@@ -2,6 +2,8 @@
 and in-place interface sync (so upgrading a group keeps the links and values in materials)."""
 from __future__ import annotations
 
+from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_NAMES
+
 VERSION_KEY = "platelight_version"
 
 
@@ -57,6 +59,15 @@ class Graph:
 
     def link(self, src, dst):
         self.tree.links.new(src, dst)
+
+
+def tent_weights(g, glossiness):
+    """maps.tent_weights in nodes: each map's weight (MAP_NAMES order) for glossiness n'."""
+    scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
+                    float(GLOSSINESS_SCALE))
+    return [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
+                                     g.math("ABSOLUTE", g.math("SUBTRACT", scaled, float(k)))), 0.0)
+            for k in range(len(MAP_NAMES))]
 
 
 def sync_interface(tree, sockets):

@@ -22,7 +22,7 @@ from ..addon.bake.layout import WORLD_FOLDER, read_record
 from ..addon.ibl import irradiance_grid
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
 from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, map_filename
-from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
+from ._build import VERSION_KEY, Graph, io_nodes, sync_interface, tent_weights
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
@@ -432,14 +432,6 @@ def _build(tree):
         g.link(direction, node.inputs["Vector"])
         return node.outputs["Color"]
 
-    def tent_weights(glossiness):
-        """The four maps' weights for the (Fresnel-adjusted) glossiness n' (maps.map_weights)."""
-        scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
-                        float(GLOSSINESS_SCALE))
-        return [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
-                                         g.math("ABSOLUTE", g.math("SUBTRACT", scaled, float(k)))),
-                       0.0) for k in range(len(MAP_NAMES))]
-
     def blended(direction, weights):
         total = None
         for name, weight in zip(MAP_NAMES, weights):
@@ -454,9 +446,9 @@ def _build(tree):
     specular_direction, footprint = _parallax(g, inp["Specular Direction"])
     # The maps are blurred as seen from the centre; a lobe meeting a surface near the shading
     # point covers less of it (docs/decisions.md, "Glossy footprint").
-    specular_weights = tent_weights(_footprint_glossiness(g, inp["Map Glossiness"], footprint))
+    specular_weights = tent_weights(g, _footprint_glossiness(g, inp["Map Glossiness"], footprint))
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(specular_direction, specular_weights))
-    refraction_weights = tent_weights(inp["Map Glossiness"])
+    refraction_weights = tent_weights(g, inp["Map Glossiness"])
     channels = []
     for index, channel in enumerate("RGB"):
         sep = g.node("ShaderNodeSeparateColor")

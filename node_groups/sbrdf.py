@@ -22,9 +22,9 @@ import bpy
 
 from ..addon import names
 from ..addon.ibl.lobe_tilt import MU, TILT
-from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_NAMES
+from ..addon.ibl.maps import MAP_NAMES
 from ..addon.material.params import PARAMETERS
-from ._build import VERSION_KEY, Graph, io_nodes, sync_interface
+from ._build import VERSION_KEY, Graph, io_nodes, sync_interface, tent_weights
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
 # 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt
@@ -186,15 +186,11 @@ def _build(tree):
 def _tilt_offset(g, glossiness, mu):
     """lobe_tilt.tilt_offset in nodes: each map's row as a curve over mu = N.d, blended with the
     maps' tent weights at glossiness n'."""
-    position = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
-                      float(GLOSSINESS_SCALE))
     mu = g.math("MINIMUM", g.math("MAXIMUM", mu, 0.0), 1.0)
     total = None
-    for k, name in enumerate(MAP_NAMES):
+    for name, weight in zip(MAP_NAMES, tent_weights(g, glossiness)):
         if not any(TILT[name]):
             continue
-        weight = g.math("MAXIMUM", g.math("SUBTRACT", 1.0, g.math("ABSOLUTE",
-                                                                  g.math("SUBTRACT", position, float(k)))), 0.0)
         term = g.math("MULTIPLY", weight, _curve(g, MU, TILT[name], mu))
         total = term if total is None else g.math("ADD", total, term)
     return total

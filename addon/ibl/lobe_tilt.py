@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 
 from .equirect import texel_directions, texel_solid_angles
-from .maps import GLOSSINESS_SCALE, MAP_NAMES, MAP_ROUGHNESS
+from .maps import MAP_NAMES, MAP_ROUGHNESS, tent_weights
 
 # mu = N.R at which each map's offset is tabulated (denser towards grazing, where it changes).
 MU = (0.0, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.75, 0.9, 0.97)
@@ -77,11 +77,10 @@ def halfway_offset(roughness: float, mu: float, height: int = 384) -> float:
 
 def tilt_offset(glossiness, mu) -> np.ndarray:
     """s for map glossiness n' and mu = N.R: each map's row interpolated in mu, blended with the
-    maps' tent weights (maps.map_weights), as the node group computes it."""
-    position = np.clip(np.asarray(glossiness, dtype=np.float64), 0.0, 1.0) * GLOSSINESS_SCALE
+    maps' tent weights, as the node group computes it."""
     mu = np.clip(np.asarray(mu, dtype=np.float64), 0.0, 1.0)
-    return sum(np.maximum(0.0, 1.0 - np.abs(position - k)) * np.interp(mu, MU, TILT[name])
-               for k, name in enumerate(MAP_NAMES))
+    return sum(weight * np.interp(mu, MU, TILT[name])
+               for name, weight in zip(MAP_NAMES, tent_weights(glossiness)))
 
 
 def tilted(direction: np.ndarray, normal: np.ndarray, glossiness) -> np.ndarray:

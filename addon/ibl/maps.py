@@ -77,11 +77,16 @@ def footprint_glossiness(glossiness, ratio):
     return np.interp(narrowed, knots[::-1], np.arange(len(knots))[::-1]) / GLOSSINESS_SCALE
 
 
+def tent_weights(glossiness) -> np.ndarray:
+    """Blend weight of each map (axis 0, in MAP_NAMES order) for ``glossiness`` (a number or an
+    array, clamped to [0, 1]): max(0, 1 - |3 n - k|); at most two are non-zero and they sum to 1."""
+    position = np.clip(np.asarray(glossiness, dtype=np.float64), 0.0, 1.0) * GLOSSINESS_SCALE
+    return np.stack([np.maximum(0.0, 1.0 - np.abs(position - k)) for k in range(len(MAP_NAMES))])
+
+
 def map_weights(glossiness: float) -> dict[str, float]:
-    """Blend weight of each map for ``glossiness`` (clamped to [0, 1]): max(0, 1 - |3 n - k|);
-    at most two are non-zero and they sum to 1."""
-    position = min(max(float(glossiness), 0.0), 1.0) * GLOSSINESS_SCALE
-    return {name: max(0.0, 1.0 - abs(position - k)) for k, name in enumerate(MAP_NAMES)}
+    """tent_weights() of one glossiness, by map name."""
+    return {name: float(w) for name, w in zip(MAP_NAMES, tent_weights(float(glossiness)))}
 
 
 @dataclasses.dataclass
