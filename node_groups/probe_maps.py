@@ -20,16 +20,18 @@ import bpy
 from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
 from ..addon.ibl import irradiance_grid
+from ..addon.ibl.anisotropy import TAP_SLOPES
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
 from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, map_filename
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface, tent_weights
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 6                          # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 7                          # 3: parallax-corrected specular look-ups (distance map)
                                      # 4: diffuse look-ups from the irradiance grid
                                      # 5: the grid's atlas read by Environment Textures (EEVEE)
                                      # 6: glossy look-ups narrowed by their footprint
+                                     # 7: anisotropic look-ups along the Specular Spread
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
@@ -447,7 +449,17 @@ def _build(tree):
     # The maps are blurred as seen from the centre; a lobe meeting a surface near the shading
     # point covers less of it (docs/decisions.md, "Glossy footprint").
     specular_weights = tent_weights(g, _footprint_glossiness(g, inp["Map Glossiness"], footprint))
-    specular = g.vmath("MULTIPLY", inp["Specular Weight"], blended(specular_direction, specular_weights))
+    # An anisotropic lobe: the maps read along the streak (addon/ibl/anisotropy.py), the same
+    # expression for every tap, so a round lobe's zero spread folds them into one look-up where
+    # the renderer folds constants (Cycles).
+    streak = None
+    for slope in TAP_SLOPES:
+        tap = g.vmath("NORMALIZE", g.vmath("ADD", specular_direction,
+                                           g.vmath("SCALE", inp["Specular Spread"], scale=slope)))
+        term = blended(tap, specular_weights)
+        streak = term if streak is None else g.vmath("ADD", streak, term)
+    streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
+    specular = g.vmath("MULTIPLY", inp["Specular Weight"], streak)
     refraction_weights = tent_weights(g, inp["Map Glossiness"])
     channels = []
     for index, channel in enumerate("RGB"):

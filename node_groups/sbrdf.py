@@ -14,6 +14,9 @@ maps and outputs the shader. The material wires the two together (operators/mate
           (0, the default: no cosine, layered energy as Principled; 1: the paper's Eq 1, 7)
     d   = normalize(p/|p| + (1 - P) s(n', N.p/|p|) N)    the look-up tilted towards N at grazing
           views, where the surface's horizon cuts the lobe (addon/ibl/lobe_tilt.py); P = 1: p/|p|
+    Anisotropy a (addon/ibl/anisotropy.py): n is first narrowed to the lobe's narrow axis, and
+    the probe group reads the maps along d + x_k spread, spread = 2 w (1 - f) ((T'.R) N + (N.R) T'),
+    w the slope width the narrow lobe lacks along T' (0 at a = 0: one look-up)
     Lr  = alpha rho_d' D(N) + rho_s' w S(d, n') + (1 - alpha) rho_d (1 - rho_s') T(t, n') + E
 """
 from __future__ import annotations
@@ -21,20 +24,23 @@ from __future__ import annotations
 import bpy
 
 from ..addon import names
+from ..addon.ibl.anisotropy import ASPECT_SCALE
 from ..addon.ibl.lobe_tilt import MU, TILT
-from ..addon.ibl.maps import MAP_NAMES
+from ..addon.ibl.maps import GLOSSINESS_KNOTS, MAP_NAMES, ROUGHNESS_KNOTS
 from ..addon.material.params import PARAMETERS
 from ._build import VERSION_KEY, Graph, io_nodes, sync_interface, tent_weights
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
-# 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt
-VERSION = 3
+# 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt;
+# 4: Anisotropy input, Specular Spread output
+VERSION = 4
 PHI_MIN = 1.0e-4
 
 # The lookup outputs, consumed by name by every "PlateLight Probe" group.
 LOOKUP_SOCKETS = (
     ("Diffuse Direction", "NodeSocketVector"),
     ("Specular Direction", "NodeSocketVector"),
+    ("Specular Spread", "NodeSocketVector"),
     ("Map Glossiness", "NodeSocketFloat"),
     ("Diffuse Weight", "NodeSocketColor"),
     ("Specular Weight", "NodeSocketColor"),
@@ -138,8 +144,8 @@ def _build(tree):
     exponent = g.math("SUBTRACT", g.math("DIVIDE", 1.0, phi), 1.0)
     fresnel = g.math("POWER", g.math("SUBTRACT", 1.0, cos_v), exponent)
     spec_albedo = g.mix("RGBA", fresnel, inp["Specular Albedo"], (1.0, 1.0, 1.0, 1.0))
-    gloss = g.math("ADD", inp["Glossiness"],
-                   g.math("MULTIPLY", g.math("SUBTRACT", 1.0, inp["Glossiness"]), fresnel))
+    narrow, streak = _anisotropy(g, inp["Glossiness"], inp["Anisotropy"])
+    gloss = g.math("ADD", narrow, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, narrow), fresnel))
     falloff_f = g.math("ADD", falloff, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, falloff), fresnel))
     # The maps already hold the lobe's integral, so the paper's cosine g' darkens every rim (a
     # mirror sphere measured 19 dB against path tracing); the default leaves it out (docs/decisions.md).
@@ -172,6 +178,10 @@ def _build(tree):
                     g.math("SUBTRACT", 1.0, inp["Paper Falloff"]))
     g.link(g.vmath("NORMALIZE", g.vmath("ADD", lookup, g.vmath("SCALE", n, scale=offset))),
            gout.inputs["Specular Direction"])
+    # The streak narrows with the lobe as Fresnel moves it towards the mirror map.
+    across = g.vmath("ADD", g.vmath("SCALE", n, scale=rt), g.vmath("SCALE", t_rot, scale=rn))
+    spread_scale = g.math("MULTIPLY", g.math("MULTIPLY", streak, 2.0), g.math("SUBTRACT", 1.0, fresnel))
+    g.link(g.vmath("SCALE", across, scale=spread_scale), gout.inputs["Specular Spread"])
     g.link(gloss, gout.inputs["Map Glossiness"])
     g.link(diffuse_w, gout.inputs["Diffuse Weight"])
     g.link(specular_w, gout.inputs["Specular Weight"])
@@ -181,6 +191,21 @@ def _build(tree):
     g.link(falloff_f, gout.inputs["Falloff"])
     gin.location = (-400, 0)
     gout.location = (200 * (g.column // 12 + 1), 0)
+
+
+def _anisotropy(g, glossiness, anisotropy):
+    """anisotropy.narrow_glossiness and streak_slope in nodes: (narrow glossiness, slope width)."""
+    amount = g.math("MINIMUM", g.math("MAXIMUM", anisotropy, 0.0), 1.0)
+    aspect = g.math("SQRT", g.math("MULTIPLY_ADD", amount, -ASPECT_SCALE, 1.0))
+    roughness = _curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS, glossiness)
+    narrow_roughness = g.math("MULTIPLY", roughness, g.math("SQRT", aspect))
+    # a difference of one curve: anisotropy 0 gives back the glossiness exactly
+    narrow = g.math("ADD", glossiness, g.math(
+        "SUBTRACT", _curve(g, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1], narrow_roughness),
+        _curve(g, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1], roughness)))
+    width = g.math("SQRT", g.math("MAXIMUM", g.math("SUBTRACT", g.math("DIVIDE", 1.0, g.math(
+        "MULTIPLY", aspect, aspect)), g.math("MULTIPLY", aspect, aspect)), 0.0))
+    return narrow, g.math("MULTIPLY", g.math("MULTIPLY", roughness, roughness), width)
 
 
 def _tilt_offset(g, glossiness, mu):

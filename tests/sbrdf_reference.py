@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from platelight.addon.ibl import anisotropy
 from platelight.addon.ibl.lobe_tilt import tilt_offset
 
 ORDER = ("diffuse", "glossy1", "glossy2", "specular")
@@ -85,7 +86,9 @@ def sbrdf(P, view, maps, p):
     phi = max(p["fresnel_falloff"], 1e-4)
     f = (1.0 - np.clip(rn, 0, 1)) ** (1.0 / phi - 1.0)
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
-    n2 = p["glossiness"] + (1 - p["glossiness"]) * f
+    amount = p.get("anisotropy", 0.0)
+    narrow = anisotropy.narrow_glossiness(p["glossiness"], amount)
+    n2 = narrow + (1 - narrow) * f
     g2 = g + (1 - g) * f
     g2 = 1.0 + p.get("paper_falloff", 0.0) * (g2 - 1.0)   # 0: no cosine; 1: the paper's g'
     rho_d = np.asarray(p["diffuse_albedo"])
@@ -98,7 +101,10 @@ def sbrdf(P, view, maps, p):
     # the paper's model looks up along p
     tilt = tilt_offset(n2[..., 0], np.clip(_dot(N, spec_dir)[..., 0], 0.0, 1.0))[..., None]
     spec_dir = _norm(spec_dir + (1 - paper) * tilt * N)
-    lr = lr + rho_s * g2 * blend(maps, spec_dir, n2)
+    # an anisotropic lobe: the maps read along the streak, narrowing with the Fresnel glossiness
+    slope = anisotropy.streak_slope(p["glossiness"], amount) * (1 - f[..., 0])
+    taps = anisotropy.tap_directions(spec_dir, anisotropy.spread(N, Tr, R, slope))
+    lr = lr + rho_s * g2 * sum(blend(maps, d, n2) for d in taps) / len(taps)
     refr = np.zeros_like(lr)
     dirs = [spec_dir, N]
     for c, sign in enumerate((-1.0, 0.0, 1.0)):

@@ -77,6 +77,7 @@ def setup_scene(bpy, count: int, size: int = 48):
     cam_data = bpy.data.cameras.new("Cam")
     cam_data.type = "ORTHO"
     cam_data.ortho_scale = 2.2 * cols
+    cam_data.sensor_fit = "HORIZONTAL"      # the scale spans the columns even when rows > cols
     cam = bpy.data.objects.new("Cam", cam_data)
     cam.location = (0.0, -10.0, 0.0)
     cam.rotation_euler = (math.pi / 2, 0.0, 0.0)

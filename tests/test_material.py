@@ -177,12 +177,14 @@ def test_principled_mapping_values():
     assert s.diffuse_albedo == pytest.approx((0.5,) * 3)
     # roughness 0.5 (the default): the rise is 23 (1 - cos)^23, not Schlick's 5
     assert 1 / s.fresnel_falloff - 1 == pytest.approx(23.2, rel=0.01)
-    # GGX anisotropy is an isotropic lobe of the same roughness, peak at the mirror direction
+    # GGX anisotropy stays Anisotropy (the group stretches the lobe), its peak at the mirror direction
     brushed = principled.principled_to_sbrdf(principled.PrincipledValues(
         metallic=1.0, roughness=0.3, anisotropic=0.8, anisotropic_rotation=0.25))
     assert (brushed.cx, brushed.cy, brushed.cz) == (-1.0, -1.0, 1.0)
     assert brushed.glossiness == pytest.approx(principled.roughness_to_glossiness(0.3))
+    assert brushed.anisotropy == pytest.approx(0.8)
     assert brushed.tangent_rotation == pytest.approx(np.pi / 2)
+    assert principled.sbrdf_to_principled(brushed).anisotropic == pytest.approx(0.8)
     metal = principled.principled_to_sbrdf(principled.PrincipledValues(
         base_color=(0.9, 0.6, 0.2), metallic=1.0))
     assert metal.diffuse_albedo == (0.0, 0.0, 0.0)

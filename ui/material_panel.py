@@ -11,7 +11,7 @@ from .registration import register_classes, unregister_classes
 
 SECTIONS = (
     ("Albedo", ("Diffuse Albedo", "Specular Albedo")),
-    ("Lobe", ("Glossiness", "Cx", "Cy", "Cz", "Tangent Rotation", "Retro-Reflection")),
+    ("Lobe", ("Glossiness", "Anisotropy", "Cx", "Cy", "Cz", "Tangent Rotation", "Retro-Reflection")),
     ("Fresnel", ("Fresnel Falloff", "Paper Falloff")),
     ("Transparency", ("Alpha", "IOR", "Dispersion")),
     ("Emission", ("Emission Color", "Emission Strength")),

@@ -37,6 +37,9 @@ DEFAULT_HEIGHTS = {"diffuse": 16, "glossy1": 32, "glossy2": 64, "specular": 128}
 # angle as each map's lobe (tests/test_material.py finds them by bisection): the Principled
 # conversion's knots, and the roughness the "ggx" glossy lobes prefilter with.
 MAP_ROUGHNESS = {"diffuse": 0.6436, "glossy1": 0.4429, "glossy2": 0.2702, "specular": 0.0}
+# Between the maps, glossiness and roughness are linear: the knots, from rough to sharp.
+ROUGHNESS_KNOTS = tuple(MAP_ROUGHNESS[name] for name in MAP_NAMES)
+GLOSSINESS_KNOTS = tuple(MAP_GLOSSINESS[name] for name in MAP_NAMES)
 # The glossy maps' lobes: the paper's normalised Phong cos^s, or GGX's reflection lobe at the
 # map's roughness (what Cycles' Principled BSDF reflects; docs/decisions.md, "Glossy lobes").
 LOBES = ("phong", "ggx")
@@ -82,6 +85,15 @@ def tent_weights(glossiness) -> np.ndarray:
     array, clamped to [0, 1]): max(0, 1 - |3 n - k|); at most two are non-zero and they sum to 1."""
     position = np.clip(np.asarray(glossiness, dtype=np.float64), 0.0, 1.0) * GLOSSINESS_SCALE
     return np.stack([np.maximum(0.0, 1.0 - np.abs(position - k)) for k in range(len(MAP_NAMES))])
+
+
+def roughness_to_glossiness(roughness):
+    """The glossiness of a GGX roughness (a number or an array), linear between the maps' knots."""
+    return np.interp(roughness, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1])
+
+
+def glossiness_to_roughness(glossiness):
+    return np.interp(glossiness, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS)
 
 
 def map_weights(glossiness: float) -> dict[str, float]:

@@ -37,7 +37,11 @@ PARAMETERS = (
     ParamSpec("fresnel_falloff", "Fresnel Falloff", "float", 0.2, 0.0, 1.0,
               "phi: Fresnel strength; near 0 only grazing angles brighten, 1 makes f = 1 everywhere"),
     ParamSpec("tangent_rotation", "Tangent Rotation", "float", 0.0, 0.0, 2.0 * math.pi,
-              "Rotation of the tangent frame (radians) in which Cx and Cy apply"),
+              "Rotation of the tangent frame (radians) in which Cx, Cy and Anisotropy apply"),
+    ParamSpec("anisotropy", "Anisotropy", "float", 0.0, 0.0, 1.0,
+              "Stretches the lobe along the (rotated) tangent, as Principled's Anisotropic: the "
+              "maps are read at the narrow axis's glossiness in several directions along the "
+              "streak; 0 is a round lobe and costs nothing extra"),
     ParamSpec("emission_color", "Emission Color", "color", (1.0, 1.0, 1.0), 0.0, 1.0,
               "Colour of light emitted by the surface (headlights, screens)"),
     ParamSpec("emission_strength", "Emission Strength", "float", 0.0, 0.0, 1.0e6,
@@ -71,6 +75,7 @@ class SBRDFParams:
     cz: float = SPEC["cz"].default
     fresnel_falloff: float = SPEC["fresnel_falloff"].default
     tangent_rotation: float = SPEC["tangent_rotation"].default
+    anisotropy: float = SPEC["anisotropy"].default
     emission_color: tuple = SPEC["emission_color"].default
     emission_strength: float = SPEC["emission_strength"].default
     alpha: float = SPEC["alpha"].default

@@ -16,12 +16,12 @@ Mapping (documented in docs/sbrdf.md):
   microfacets average the Fresnel rise away. A Schlick rise on a roughness-1 sphere took 60 % of
   the diffuse at its rim (a rough dielectric reflects 8 % there).
 - alpha = principled alpha * (1 - transmission (1 - metallic)); IOR as is; emission as is.
-- anisotropy: none (Cx = Cy = -1, the peak at the mirror direction), the glossiness of the
-  roughness (GGX's anisotropic alphas r^2 / aspect and r^2 aspect have the geometric mean r^2).
-  The Lafortune Cy = -(1 - 0.9 a) this used to give moves the peak towards the normal instead of
-  stretching the lobe: the benchmark's brushed sphere (roughness 0.3, anisotropy 0.8) came out at
-  18.1 dB object PSNR, isotropic 22.9 dB (the catcher 40.0; docs/decisions.md). The anisotropic
-  rotation still sets Tangent Rotation (2 pi * rotation), for a hand-tuned Cy.
+- anisotropy: as is, with Cx = Cy = -1 (the peak at the mirror direction) and the glossiness of
+  the roughness; the group reads the maps at the narrow axis's glossiness along the streak
+  (addon/ibl/anisotropy.py). The Lafortune Cy = -(1 - 0.9 a) this once gave moves the peak
+  towards the normal instead of stretching the lobe: the benchmark's brushed sphere (roughness
+  0.3, anisotropy 0.8) came out at 18.1 dB object PSNR, a round lobe 22.9 dB (the catcher 40.0;
+  docs/decisions.md). The anisotropic rotation sets Tangent Rotation (2 pi * rotation).
 """
 from __future__ import annotations
 
@@ -30,13 +30,9 @@ import math
 
 import numpy as np
 
-from ..ibl.maps import MAP_GLOSSINESS, MAP_NAMES, MAP_ROUGHNESS
+from ..ibl import maps
 from .params import SBRDFParams
 
-# Each map's roughness and glossiness (fitted by tests/test_material.py::
-# test_roughness_knots_match_the_ggx_lobes, brute force).
-_ROUGHNESS_KNOTS = np.array([MAP_ROUGHNESS[name] for name in reversed(MAP_NAMES)])
-_GLOSS_KNOTS = np.array([MAP_GLOSSINESS[name] for name in reversed(MAP_NAMES)])
 METAL_THRESHOLD = 0.2
 # Fitted by tests/test_material.py::test_fresnel_falloff_knots_follow_the_ggx_albedo (brute force).
 _FALLOFF_ROUGHNESS = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0])
@@ -58,12 +54,14 @@ class PrincipledValues:
     emission_strength: float = 0.0
 
 
+# Each map's roughness (maps.MAP_ROUGHNESS) is fitted by tests/test_material.py::
+# test_roughness_knots_match_the_ggx_lobes, brute force.
 def roughness_to_glossiness(roughness: float) -> float:
-    return float(np.interp(roughness, _ROUGHNESS_KNOTS, _GLOSS_KNOTS))
+    return float(maps.roughness_to_glossiness(roughness))
 
 
 def glossiness_to_roughness(glossiness: float) -> float:
-    return float(np.interp(glossiness, _GLOSS_KNOTS[::-1], _ROUGHNESS_KNOTS[::-1]))
+    return float(maps.glossiness_to_roughness(glossiness))
 
 
 def roughness_to_fresnel_falloff(roughness: float) -> float:
@@ -87,6 +85,7 @@ def principled_to_sbrdf(p: PrincipledValues) -> SBRDFParams:
         cx=-1.0, cy=-1.0, cz=1.0,
         fresnel_falloff=roughness_to_fresnel_falloff(p.roughness),
         tangent_rotation=2.0 * math.pi * (p.anisotropic_rotation % 1.0),
+        anisotropy=float(p.anisotropic),
         emission_color=tuple(float(c) for c in p.emission_color[:3]),
         emission_strength=float(p.emission_strength),
         alpha=float(min(max(alpha, 0.0), 1.0)),
@@ -111,7 +110,7 @@ def sbrdf_to_principled(s: SBRDFParams) -> PrincipledValues:
         roughness=glossiness_to_roughness(s.glossiness), ior=float(s.ior),
         specular_ior_level=float(min(max(level, 0.0), 1.0)),
         transmission=float(transmission), alpha=1.0 if transmission > 0 else float(s.alpha),
-        anisotropic=float(min(max(anis, 0.0), 1.0)),
+        anisotropic=float(min(max(max(anis, s.anisotropy), 0.0), 1.0)),
         anisotropic_rotation=float(s.tangent_rotation / (2.0 * math.pi)),
         emission_color=tuple(s.emission_color), emission_strength=float(s.emission_strength),
     )

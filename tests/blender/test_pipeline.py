@@ -88,6 +88,7 @@ def _sbrdf(maps, N, p):
     """Eq 1-7 for C = (Cx, Cx, Cz) (isotropic: the tangent frame drops out), alpha 1, no emission.
     Returns Lr and the directions looked up (for the pole mask)."""
     assert p["cx"] == p["cy"] and p["alpha"] == 1.0 and p["emission_strength"] == 0.0
+    assert p.get("anisotropy", 0.0) == 0.0, "a round lobe: one look-up"
     R = np.broadcast_to(VIEW, N.shape)
     rn = np.sum(R * N, axis=-1, keepdims=True)
     peak = p["cx"] * (R - rn * N) + p["cz"] * rn * N

@@ -10,6 +10,7 @@ import pytest
 
 import sbrdf_scene as sc
 from platelight.addon import names
+from platelight.addon.ibl.anisotropy import TAP_SLOPES
 from platelight.addon.ibl.distance import DISTANCE_NAME
 from platelight.addon.ibl.irradiance_grid import GRID_NAME
 from platelight.addon.material.params import PARAMETERS
@@ -61,7 +62,9 @@ def test_apply_sbrdf_converts_principled_and_binds_probe(bpy_clean, tmp_path):
     probe = sm.probe_node(mat).node_tree
     envs = [n for n in probe.nodes if n.bl_idname == "ShaderNodeTexEnvironment"
             and n.get("platelight_map") not in LOOKUP_FILES]     # the parallax look-ups have their own
-    assert len(envs) == 17 and all(n.image is not None for n in envs)
+    # diffuse + each anisotropic tap's four maps + three refraction channels' four maps
+    expected = 1 + 4 * len(TAP_SLOPES) + 3 * 4
+    assert len(envs) == expected and all(n.image is not None for n in envs)
     assert {n.image.name for n in envs} == {f"{m}.exr" for m in sc.MAP_HEIGHTS}
     assert all(n.interpolation == "Linear" for n in envs)
     surface = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")

@@ -29,6 +29,11 @@ CASES = {
     "blend_g2_s": dict(BASE, specular_albedo=(0.9, 0.9, 0.9), glossiness=0.85),
     "anisotropic": dict(BASE, specular_albedo=(0.9, 0.8, 0.7), glossiness=0.9, cx=-1.0,
                         cy=-0.3, cz=0.8, tangent_rotation=0.7, paper_falloff=1.0),
+    # Principled-style anisotropy: the maps read along the streak (addon/ibl/anisotropy.py)
+    "brushed": dict(BASE, specular_albedo=(0.9, 0.9, 0.9), glossiness=0.6, anisotropy=0.8,
+                    fresnel_falloff=0.1),
+    "brushed_rotated": dict(BASE, specular_albedo=(0.8, 0.7, 0.6), glossiness=0.45,
+                            anisotropy=1.0, tangent_rotation=1.2, fresnel_falloff=0.3),
     "fresnel_phi_small": dict(BASE, diffuse_albedo=(0.3, 0.3, 0.3),
                               specular_albedo=(0.05, 0.05, 0.05), glossiness=0.5,
                               fresnel_falloff=0.02),
