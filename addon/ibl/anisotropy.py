@@ -11,8 +11,9 @@ tangent T moves the mirror direction R of the view V by 2 x ((T.V) N + (N.V) T) 
 which is the spread's direction at any view.
 
 On a bare metal sphere under the bundled HDRIs (brute-force anisotropic GGX as the truth, 15
-materials, docs/decisions.md "Anisotropic look-ups"), five look-ups gained 1.4 dB on average over
-the round lobe, 5.3 dB on the benchmark's brushed metal (roughness 0.3, anisotropy 0.8).
+materials; tests/bench/bench_anisotropy.py, docs/bench/anisotropy.md), five look-ups gained
+1.45 dB on average over the round lobe, 5.0 dB on the benchmark's brushed metal (roughness 0.3,
+anisotropy 0.8) under city.
 The node groups (node_groups/sbrdf.py, probe_maps.py) build the same rule from these constants.
 """
 from __future__ import annotations

@@ -1,0 +1,121 @@
+"""How well the maps stand for a brushed metal's anisotropic GGX lobe (issue 11: the anisotropic
+sphere's object PSNR). numpy only, no Blender.
+
+A metal sphere (no Fresnel or albedo: the lobe's shape alone), its tangent circling the Z axis as
+the SBRDF group's does, seen from three directions under a bundled HDRI. Truth: for every pixel,
+the probe's texels (192 rows) integrated with Principled's anisotropic GGX (alphas r²/aspect along
+the tangent, r²·aspect across it, aspect = √(1 − 0.9 a); D and Smith G2 with the projected alpha).
+PlateLight: the four maps (Phong lobes), looked up with the look-up tilt either as one round lobe
+at the roughness's glossiness (before session 12) or as the shader does now (addon/ibl/anisotropy.py:
+five look-ups along the streak at the narrow axis's glossiness). PSNR over the sphere's pixels, peak
+= the truth's 99.5th percentile (as docs/bench/composite.md).
+
+Run: `.venv/bin/python tests/bench/bench_anisotropy.py` (about 3 minutes on 2 cores); writes
+docs/bench/anisotropy.md."""
+from __future__ import annotations
+
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import support  # noqa: E402,F401
+from bench_lobes import HDRIS, VIEW_AZIMUTHS, blended, lookups, psnr, sphere_view  # noqa: E402
+import bench_lobes  # noqa: E402
+from platelight.addon.demo import bundled_hdris  # noqa: E402
+from platelight.addon.exr_io import read_exr  # noqa: E402
+from platelight.addon.ibl import anisotropy, maps  # noqa: E402
+from platelight.addon.ibl import equirect as eq  # noqa: E402
+from platelight.addon.material.principled import roughness_to_glossiness  # noqa: E402
+
+MATERIALS = ((0.2, 0.5), (0.3, 0.3), (0.3, 0.8), (0.45, 1.0), (0.5, 0.5))   # (roughness, anisotropy)
+TRUTH_HEIGHT = 192
+PIXELS = 28
+
+
+class AnisotropicGGXTruth:
+    def __init__(self, env):
+        self.dirs = eq.texel_directions(TRUTH_HEIGHT, 2 * TRUTH_HEIGHT).reshape(-1, 3)
+        self.solid = eq.texel_solid_angles(TRUTH_HEIGHT, 2 * TRUTH_HEIGHT).reshape(-1)
+        self.radiance = eq.downsample_area(env, TRUTH_HEIGHT).astype(np.float64).reshape(-1, 3)
+
+    def pixel(self, normal, tangent, view, alpha_t, alpha_b):
+        bitangent = np.cross(normal, tangent)
+        above = self.dirs @ normal > 0
+        light = self.dirs[above]
+        half = light + view
+        half /= np.linalg.norm(half, axis=1, keepdims=True)
+        d = 1 / (np.pi * alpha_t * alpha_b * ((half @ tangent / alpha_t) ** 2
+                                              + (half @ bitangent / alpha_b) ** 2
+                                              + (half @ normal) ** 2) ** 2)
+
+        def smith(w):
+            projected = ((w @ tangent) * alpha_t) ** 2 + ((w @ bitangent) * alpha_b) ** 2
+            return (np.sqrt(1 + projected / np.maximum((w @ normal) ** 2, 1e-12)) - 1) / 2
+        weight = d / (1 + smith(view[None])[0] + smith(light)) * self.solid[above]
+        return (weight[:, None] * self.radiance[above]).sum(0) / weight.sum()
+
+
+def tangents_about_z(normals):
+    t = np.stack([-normals[:, 1], normals[:, 0], np.zeros(len(normals))], -1)
+    return t / np.linalg.norm(t, axis=1, keepdims=True)
+
+
+def along_streak(found, normals, tangents, view, glossiness, amount):
+    """The shader's anisotropic look-ups (node_groups/sbrdf.py, probe_maps.py), no Fresnel."""
+    narrow = anisotropy.narrow_glossiness(glossiness, amount)
+    spread = anisotropy.spread(normals, tangents, view, anisotropy.streak_slope(glossiness, amount))
+    centre = lookups(normals, view, narrow, True)
+    taps = anisotropy.tap_directions(centre, spread)
+    return sum(blended(found, narrow, d) for d in taps) / len(taps)
+
+
+def main(out_dir: pathlib.Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    bench_lobes.PIXELS = PIXELS
+    views = [sphere_view(a) for a in VIEW_AZIMUTHS]
+    rows = []
+    for name in HDRIS:
+        env = np.maximum(read_exr(bundled_hdris()[name]), 0).astype(np.float32)
+        found = maps.compute_maps(env, maps.MapSettings()).maps
+        truth = AnisotropicGGXTruth(env)
+        for roughness, amount in MATERIALS:
+            t0 = time.perf_counter()
+            aspect = float(anisotropy.aspect(amount))
+            glossiness = roughness_to_glossiness(roughness)
+            round_scores, streak_scores = [], []
+            for normals, view in views:
+                tangents = tangents_about_z(normals)
+                want = np.array([truth.pixel(n, t, view, roughness ** 2 / aspect, roughness ** 2 * aspect)
+                                 for n, t in zip(normals, tangents)])
+                round_lobe = blended(found, glossiness, lookups(normals, view, glossiness, True))
+                round_scores.append(psnr(round_lobe, want))
+                streak_scores.append(psnr(along_streak(found, normals, tangents, view, glossiness, amount), want))
+            rows.append((name, roughness, amount, float(np.mean(round_scores)), float(np.mean(streak_scores))))
+            print(f"{name:10s} r {roughness:.2f} a {amount:.1f}  round {rows[-1][3]:6.2f} dB  "
+                  f"streak {rows[-1][4]:6.2f} dB  ({time.perf_counter() - t0:.0f} s)", flush=True)
+    write_report(out_dir / "anisotropy.md", rows)
+
+
+def write_report(path, rows):
+    lines = [
+        "# Anisotropic lobes: the maps against brushed GGX (issue 11)", "",
+        (__doc__.split("\n\n")[1].replace("\n", " ")), "",
+        "Produced by `tests/bench/bench_anisotropy.py`.", "",
+        "| HDRI | roughness | anisotropy | round lobe (dB) | along the streak (default) | gain |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for name, roughness, amount, round_db, streak_db in rows:
+        lines.append(f"| {name} | {roughness:.2f} | {amount:.1f} | {round_db:.2f} | {streak_db:.2f} | "
+                     f"{streak_db - round_db:+.2f} |")
+    gains = np.array([r[4] - r[3] for r in rows])
+    lines += ["", f"Mean gain over all rows: {gains.mean():+.2f} dB (range {gains.min():+.2f} to "
+              f"{gains.max():+.2f}).", ""]
+    path.write_text("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main(support.REPO / "docs" / "bench")
