@@ -87,3 +87,51 @@ def relative_rms(value: np.ndarray, reference: np.ndarray) -> float:
     w = sa.reshape(reference.shape[0], reference.shape[1], 1)
     err = np.sqrt((w * (value - reference) ** 2).sum() / w.sum())
     return float(err / np.sqrt((w * reference ** 2).sum() / w.sum()))
+
+
+def anisotropic_ggx(env: np.ndarray, alpha_t: float, alpha_b: float, normals, tangents, view,
+                    height: int) -> np.ndarray:
+    """Brute-force GGX reflection per pixel (D and height-correlated Smith G2 with the projected
+    alpha; alpha_t along the tangent, alpha_b across it; no Fresnel), normalised over the
+    hemisphere, of ``env`` box-downsampled to ``height`` rows. alpha_t = alpha_b is isotropic GGX."""
+    dirs, solid = texel_grid(height)
+    radiance = (box_downsample(env, height) if env.shape[0] != height else env).reshape(-1, 3)
+    out = []
+    for normal, tangent in zip(normals, tangents):
+        bitangent = np.cross(normal, tangent)
+        above = dirs @ normal > 0
+        light = dirs[above]
+        half = light + view
+        half /= np.linalg.norm(half, axis=1, keepdims=True)
+        d = 1 / (np.pi * alpha_t * alpha_b * ((half @ tangent / alpha_t) ** 2
+                                              + (half @ bitangent / alpha_b) ** 2
+                                              + (half @ normal) ** 2) ** 2)
+
+        def smith(w):
+            projected = ((w @ tangent) * alpha_t) ** 2 + ((w @ bitangent) * alpha_b) ** 2
+            return (np.sqrt(1 + projected / np.maximum((w @ normal) ** 2, 1e-12)) - 1) / 2
+        weight = d / (1 + smith(view[None])[0] + smith(light)) * solid[above]
+        out.append((weight[:, None] * radiance[above]).sum(0) / weight.sum())
+    return np.array(out)
+
+
+def tangents_about_z(normals) -> np.ndarray:
+    """The SBRDF frame's tangent: circles around the Z axis (unit; normals off the poles)."""
+    t = np.stack([-normals[:, 1], normals[:, 0], np.zeros(len(normals))], -1)
+    return t / np.linalg.norm(t, axis=1, keepdims=True)
+
+
+def sky_with_sun(height: int, sun: float) -> np.ndarray:
+    """A lat-long sky brighter above than below, with one bright texel 45 degrees up towards +Y."""
+    elevation = np.pi * (0.5 - (np.arange(height) + 0.5) / height)
+    env = np.zeros((height, 2 * height, 3), np.float32)
+    env[:] = (0.2 + 2.0 * np.clip(np.sin(elevation), 0, 1) ** 2)[:, None, None]
+    env[height // 4, height // 2] = sun
+    return env
+
+
+def sphere_facing_x(pixels: int = 24):
+    """Unit normals of an orthographic sphere seen along -X (from +X), pixels across."""
+    ys, zs = np.meshgrid(np.linspace(-0.97, 0.97, pixels), np.linspace(-0.97, 0.97, pixels))
+    inside = ys ** 2 + zs ** 2 < 0.97 ** 2
+    return np.stack([np.sqrt(1 - ys[inside] ** 2 - zs[inside] ** 2), ys[inside], zs[inside]], -1)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import reference
 import support  # noqa: F401
 from platelight.addon.ibl import anisotropy, equirect as eq, lobe_tilt, maps
 from platelight.addon.material.principled import roughness_to_glossiness
@@ -42,51 +43,19 @@ def test_spread_is_the_mirror_directions_first_order_move():
         assert predicted == pytest.approx(exact, abs=1e-7)
 
 
-def _anisotropic_ggx_sphere(env, alpha_t, alpha_b, normals, tangents, view, height=128):
-    """Brute-force anisotropic GGX (D, Smith G2 with the projected alpha), normalised over the
-    hemisphere, per pixel."""
-    dirs = eq.texel_directions(height, 2 * height).reshape(-1, 3)
-    solid = eq.texel_solid_angles(height, 2 * height).reshape(-1)
-    radiance = eq.downsample_area(env, height).astype(np.float64).reshape(-1, 3)
-    out = []
-    for normal, tangent in zip(normals, tangents):
-        bitangent = np.cross(normal, tangent)
-        above = dirs @ normal > 0
-        light = dirs[above]
-        half = light + view
-        half /= np.linalg.norm(half, axis=1, keepdims=True)
-        d = 1 / (np.pi * alpha_t * alpha_b * ((half @ tangent / alpha_t) ** 2
-                                              + (half @ bitangent / alpha_b) ** 2
-                                              + (half @ normal) ** 2) ** 2)
-
-        def smith(w):
-            projected = ((w @ tangent) * alpha_t) ** 2 + ((w @ bitangent) * alpha_b) ** 2
-            return (np.sqrt(1 + projected / np.maximum((w @ normal) ** 2, 1e-12)) - 1) / 2
-        weight = d / (1 + smith(view[None])[0] + smith(light)) * solid[above]
-        out.append((weight[:, None] * radiance[above]).sum(0) / weight.sum())
-    return np.array(out)
-
-
 def test_look_ups_along_the_streak_bring_a_brushed_sphere_nearer_brute_force():
     """The benchmark's brushed metal (roughness 0.3, anisotropy 0.8; no Fresnel: the lobe alone)
     under a sky with a small sun: one round look-up paints a round sun where GGX draws a streak
-    (measured: 26.6 dB round, 29.7 dB along the streak)."""
-    height = 64
-    env = np.zeros((height, 2 * height, 3), np.float32)
-    elevation = eq.row_elevations(height)
-    env[:] = (0.2 + 2.0 * np.clip(np.sin(elevation), 0, 1) ** 2)[:, None, None]
-    env[height // 4, height // 2] = 200.0                       # a small bright sun up the sky
+    (measured: 26.6 dB round, 29.6 dB along the streak)."""
+    env = reference.sky_with_sun(64, 200.0)                     # a small bright sun up the sky
     found = maps.compute_maps(env, maps.MapSettings()).maps
     view = np.array([1.0, 0.0, 0.0])
-    ys, zs = np.meshgrid(np.linspace(-0.97, 0.97, 24), np.linspace(-0.97, 0.97, 24))
-    inside = ys ** 2 + zs ** 2 < 0.97 ** 2
-    normals = np.stack([np.sqrt(1 - ys[inside] ** 2 - zs[inside] ** 2), ys[inside], zs[inside]], -1)
-    tangents = np.stack([-normals[:, 1], normals[:, 0], np.zeros(len(normals))], -1)  # about Z
-    tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+    normals = reference.sphere_facing_x()
+    tangents = reference.tangents_about_z(normals)
     roughness, amount = 0.3, 0.8
     aspect = anisotropy.aspect(amount)
-    truth = _anisotropic_ggx_sphere(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
-                                    normals, tangents, view)
+    truth = reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
+                                      normals, tangents, view, 64)
     glossiness = roughness_to_glossiness(roughness)
     reflected = 2 * (normals @ view)[:, None] * normals - view
 

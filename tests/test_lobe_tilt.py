@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import reference
 import support  # noqa: F401
 from platelight.addon.ibl import equirect as eq
 from platelight.addon.ibl import lobe_tilt, maps
@@ -36,43 +37,17 @@ def test_a_mirror_and_a_head_on_view_keep_r():
     assert lobe_tilt.tilted(grazing, n, 0.3)[0, 2] > 0.1 + 0.1        # tilted towards N
 
 
-def _ggx_sphere(env, roughness, normals, view, height=128):
-    """Brute-force GGX (D, height-correlated Smith G2, normalised over the hemisphere) per pixel."""
-    dirs = eq.texel_directions(height, 2 * height).reshape(-1, 3)
-    solid = eq.texel_solid_angles(height, 2 * height).reshape(-1)
-    radiance = eq.downsample_area(env, height).astype(np.float64).reshape(-1, 3)
-    a2 = roughness ** 4
-    out = []
-    for normal in normals:
-        above = dirs @ normal > 0
-        light = dirs[above]
-        half = light + view
-        half /= np.linalg.norm(half, axis=1, keepdims=True)
-        cos_h = half @ normal
-        d = a2 / (np.pi * (cos_h * cos_h * (a2 - 1) + 1) ** 2)
-
-        def smith(c):
-            return (np.sqrt(1 + a2 * (1 - c * c) / np.maximum(c * c, 1e-12)) - 1) / 2
-        weight = d / (1 + smith(normal @ view) + smith(light @ normal)) * solid[above]
-        out.append((weight[:, None] * radiance[above]).sum(0) / weight.sum())
-    return np.array(out)
-
-
 def test_the_tilt_brings_a_rough_metal_sphere_nearer_brute_force_ggx():
     """A roughness-0.45 metal sphere (no Fresnel: the lobe alone) under a sky brighter above than
     below: the four maps looked up along R are darker than GGX towards its rim; tilted, nearer."""
-    height = 64
-    env = np.zeros((height, 2 * height, 3), np.float32)
-    elevation = eq.row_elevations(height)
-    env[:] = (0.2 + 2.0 * np.clip(np.sin(elevation), 0, 1) ** 2)[:, None, None]
-    env[height // 4, height // 2] = 50.0                        # a small bright light up the sky
+    env = reference.sky_with_sun(64, 50.0)                      # a small bright light up the sky
     found = maps.compute_maps(env, maps.MapSettings()).maps
     view = np.array([1.0, 0.0, 0.0])
-    ys, zs = np.meshgrid(np.linspace(-0.97, 0.97, 24), np.linspace(-0.97, 0.97, 24))
-    inside = ys ** 2 + zs ** 2 < 0.97 ** 2
-    normals = np.stack([np.sqrt(1 - ys[inside] ** 2 - zs[inside] ** 2), ys[inside], zs[inside]], -1)
+    normals = reference.sphere_facing_x()
     roughness = 0.45
-    truth = _ggx_sphere(env, roughness, normals, view)
+    alpha = roughness ** 2
+    truth = reference.anisotropic_ggx(env, alpha, alpha, normals, reference.tangents_about_z(normals),
+                                      view, 64)
     glossiness = roughness_to_glossiness(roughness)
     reflected = 2 * (normals @ view)[:, None] * normals - view
 

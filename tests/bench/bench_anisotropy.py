@@ -3,7 +3,7 @@ sphere's object PSNR). numpy only, no Blender.
 
 A metal sphere (no Fresnel or albedo: the lobe's shape alone), its tangent circling the Z axis as
 the SBRDF group's does, seen from three directions under a bundled HDRI. Truth: for every pixel,
-the probe's texels (192 rows) integrated with Principled's anisotropic GGX (alphas r²/aspect along
+the probe's texels (256 rows, tests/reference.py's brute force) integrated with Principled's anisotropic GGX (alphas r²/aspect along
 the tangent, r²·aspect across it, aspect = √(1 − 0.9 a); D and Smith G2 with the projected alpha).
 PlateLight: the four maps (Phong lobes), looked up with the look-up tilt either as one round lobe
 at the roughness's glossiness (before session 12) or as the shader does now (addon/ibl/anisotropy.py:
@@ -22,46 +22,18 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import reference  # noqa: E402
 import support  # noqa: E402,F401
 from bench_lobes import HDRIS, VIEW_AZIMUTHS, blended, lookups, psnr, sphere_view  # noqa: E402
 import bench_lobes  # noqa: E402
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps  # noqa: E402
-from platelight.addon.ibl import equirect as eq  # noqa: E402
 from platelight.addon.material.principled import roughness_to_glossiness  # noqa: E402
 
 MATERIALS = ((0.2, 0.5), (0.3, 0.3), (0.3, 0.8), (0.45, 1.0), (0.5, 0.5))   # (roughness, anisotropy)
-TRUTH_HEIGHT = 192
+TRUTH_HEIGHT = 256
 PIXELS = 28
-
-
-class AnisotropicGGXTruth:
-    def __init__(self, env):
-        self.dirs = eq.texel_directions(TRUTH_HEIGHT, 2 * TRUTH_HEIGHT).reshape(-1, 3)
-        self.solid = eq.texel_solid_angles(TRUTH_HEIGHT, 2 * TRUTH_HEIGHT).reshape(-1)
-        self.radiance = eq.downsample_area(env, TRUTH_HEIGHT).astype(np.float64).reshape(-1, 3)
-
-    def pixel(self, normal, tangent, view, alpha_t, alpha_b):
-        bitangent = np.cross(normal, tangent)
-        above = self.dirs @ normal > 0
-        light = self.dirs[above]
-        half = light + view
-        half /= np.linalg.norm(half, axis=1, keepdims=True)
-        d = 1 / (np.pi * alpha_t * alpha_b * ((half @ tangent / alpha_t) ** 2
-                                              + (half @ bitangent / alpha_b) ** 2
-                                              + (half @ normal) ** 2) ** 2)
-
-        def smith(w):
-            projected = ((w @ tangent) * alpha_t) ** 2 + ((w @ bitangent) * alpha_b) ** 2
-            return (np.sqrt(1 + projected / np.maximum((w @ normal) ** 2, 1e-12)) - 1) / 2
-        weight = d / (1 + smith(view[None])[0] + smith(light)) * self.solid[above]
-        return (weight[:, None] * self.radiance[above]).sum(0) / weight.sum()
-
-
-def tangents_about_z(normals):
-    t = np.stack([-normals[:, 1], normals[:, 0], np.zeros(len(normals))], -1)
-    return t / np.linalg.norm(t, axis=1, keepdims=True)
 
 
 def along_streak(found, normals, tangents, view, glossiness, amount):
@@ -81,16 +53,15 @@ def main(out_dir: pathlib.Path) -> None:
     for name in HDRIS:
         env = np.maximum(read_exr(bundled_hdris()[name]), 0).astype(np.float32)
         found = maps.compute_maps(env, maps.MapSettings()).maps
-        truth = AnisotropicGGXTruth(env)
         for roughness, amount in MATERIALS:
             t0 = time.perf_counter()
             aspect = float(anisotropy.aspect(amount))
             glossiness = roughness_to_glossiness(roughness)
             round_scores, streak_scores = [], []
             for normals, view in views:
-                tangents = tangents_about_z(normals)
-                want = np.array([truth.pixel(n, t, view, roughness ** 2 / aspect, roughness ** 2 * aspect)
-                                 for n, t in zip(normals, tangents)])
+                tangents = reference.tangents_about_z(normals)
+                want = reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
+                                                 normals, tangents, view, TRUTH_HEIGHT)
                 round_lobe = blended(found, glossiness, lookups(normals, view, glossiness, True))
                 round_scores.append(psnr(round_lobe, want))
                 streak_scores.append(psnr(along_streak(found, normals, tangents, view, glossiness, amount), want))
