@@ -81,6 +81,11 @@ def test_hash_of_arrays_is_cheap_for_big_meshes():
     (needs.Lobes(diffuse=True, specular=False, glossiness=0.0, fresnel=True), needs.MAP_NAMES),
     (needs.Lobes(diffuse=False, specular=True, glossiness=None, fresnel=False), needs.MAP_NAMES),
     (needs.Lobes(diffuse=False, specular=False, glossiness=1.0, fresnel=False), ("diffuse",)),
+    # an anisotropic lobe reads its narrow axis's sharper maps; a textured anisotropy, any
+    (needs.Lobes(diffuse=False, specular=True, glossiness=2 / 3, fresnel=False, anisotropy=0.8),
+     ("glossy2", "specular")),
+    (needs.Lobes(diffuse=False, specular=True, glossiness=2 / 3, fresnel=False, anisotropy=None),
+     needs.MAP_NAMES),
 ])
 def test_maps_needed(lobes, expected):
     assert needs.maps_needed([lobes]) == expected

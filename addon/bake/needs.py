@@ -4,11 +4,13 @@ Glossiness n in [0, 1] blends linearly between the maps anchored at 0 (diffuse),
 (glossy1), 2/3 (glossy2) and 1 (specular) (design.md; the rule is ibl/maps.map_weights). Eq 4-7's Fresnel term raises the
 glossiness towards 1 at grazing angles (n' = n + (1 - n) f) and adds specular reflection even
 where the specular albedo is 0 (rho_s' = rho_s + (1 - rho_s) f), so a lobe with Fresnel on needs
-every map from n up to the specular one."""
+every map from n up to the specular one. An anisotropic lobe reads the maps at its narrow axis's
+glossiness (ibl/anisotropy.narrow_glossiness), which is what counts here."""
 from __future__ import annotations
 
 import dataclasses
 
+from ..ibl.anisotropy import narrow_glossiness
 from ..ibl.maps import MAP_NAMES, map_weights
 
 
@@ -20,6 +22,14 @@ class Lobes:
     specular: bool = True                # specular albedo not black
     glossiness: float | None = None      # None: textured, any value in [0, 1]
     fresnel: bool = True                 # Fresnel falloff phi > 0
+    anisotropy: float | None = 0.0       # None: textured
+
+    @property
+    def map_glossiness(self) -> float | None:
+        """The glossiness the maps are read at: an anisotropic lobe's narrow axis."""
+        if self.glossiness is None or self.anisotropy is None:
+            return None
+        return float(narrow_glossiness(self.glossiness, self.anisotropy))
 
 
 def glossy_maps(n: float | None, fresnel: bool) -> set[str]:
@@ -42,7 +52,7 @@ def maps_needed(materials: list[Lobes]) -> tuple[str, ...]:
         if lobes.diffuse:
             wanted.add("diffuse")
         if lobes.specular or lobes.fresnel:
-            wanted |= glossy_maps(lobes.glossiness, lobes.fresnel)
+            wanted |= glossy_maps(lobes.map_glossiness, lobes.fresnel)
     if not wanted:                       # black, non-reflective: still give it a diffuse map
         wanted.add("diffuse")
     return tuple(name for name in MAP_NAMES if name in wanted)
@@ -53,7 +63,8 @@ def needs_sharp_specular(materials: list[Lobes]) -> bool:
     reflection? True when a material's specular lobe blends the specular map at normal incidence
     (glossiness above glossy2's) or its glossiness varies. Fresnel alone reaches the specular map
     only at the grazing rim, where the reflection is compressed and a Probe Height probe serves."""
-    return any(lobes.specular and (lobes.glossiness is None or map_weights(lobes.glossiness)["specular"] > 0)
+    return any(lobes.specular and (lobes.map_glossiness is None
+                                   or map_weights(lobes.map_glossiness)["specular"] > 0)
                for lobes in materials)
 
 

@@ -209,7 +209,9 @@ def lobes_of_material(mat) -> needs.Lobes:
             return needs.Lobes(diffuse=_nonzero(node, "Diffuse Albedo"),
                                specular=_nonzero(node, "Specular Albedo"),
                                glossiness=_scalar(node, "Glossiness"),
-                               fresnel=_nonzero(node, "Fresnel Falloff"))
+                               fresnel=_nonzero(node, "Fresnel Falloff"),
+                               # a group from before the Anisotropy input: a round lobe
+                               anisotropy=_scalar(node, "Anisotropy") if _socket(node, "Anisotropy") else 0.0)
     for node in nodes:
         if node.bl_idname == "ShaderNodeBsdfPrincipled":
             metallic = _scalar(node, "Metallic")

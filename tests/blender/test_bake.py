@@ -141,8 +141,10 @@ def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
     matte = add_sphere(bpy, "Matte", (-1, 0, 0))
     mirror = add_sphere(bpy, "Mirror", (1, 0, 0))
     plain = add_sphere(bpy, "Plain", (0, 0, 1))       # no material: any SBRDF may come later
-    for ob, diffuse, specular, glossiness, fresnel in ((matte, 0.8, 0.0, 0.0, 0.0),
-                                                        (mirror, 0.0, 1.0, 1.0, 0.2)):
+    brushed = add_sphere(bpy, "Brushed", (0, 0, -0.5))
+    for ob, diffuse, specular, glossiness, fresnel, anisotropy in (
+            (matte, 0.8, 0.0, 0.0, 0.0, 0.0), (mirror, 0.0, 1.0, 1.0, 0.2, 0.0),
+            (brushed, 0.0, 1.0, 2 / 3, 0.0, 0.8)):
         mat = compat().new_material(ob.name)
         group = bpy.data.node_groups.get("PlateLight SBRDF") or _fake_sbrdf_group(bpy)
         node = mat.node_tree.nodes.new("ShaderNodeGroup")
@@ -151,6 +153,7 @@ def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
         node.inputs["Specular Albedo"].default_value = (specular,) * 3 + (1,)
         node.inputs["Glossiness"].default_value = glossiness
         node.inputs["Fresnel Falloff"].default_value = fresnel
+        node.inputs["Anisotropy"].default_value = anisotropy
         ob.data.materials.append(mat)
     bake(bpy, all_objects=True, cull=False)
     names = lambda n: sorted(p.name for p in maps_folder(tmp_path, n).glob("*.exr"))
@@ -158,6 +161,8 @@ def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
     assert names("Matte") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr"]
     assert names("Mirror") == ["distance.exr", "specular.exr"]
     assert names("Plain") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr", "glossy1.exr", "glossy2.exr", "specular.exr"]
+    # brushed: its narrow axis reads above glossy2's glossiness
+    assert names("Brushed") == ["distance.exr", "glossy2.exr", "specular.exr"]
     # The mirror turns matte: the next bake computes only the diffuse map and drops the old one.
     node = mirror.data.materials[0].node_tree.nodes["Group"]
     node.inputs["Diffuse Albedo"].default_value = (0.5, 0.5, 0.5, 1)
@@ -176,7 +181,8 @@ def _fake_sbrdf_group(bpy):
     only the inputs matter to which maps a bake computes)."""
     group = bpy.data.node_groups.new("PlateLight SBRDF", "ShaderNodeTree")
     for name, kind in (("Diffuse Albedo", "NodeSocketColor"), ("Specular Albedo", "NodeSocketColor"),
-                       ("Glossiness", "NodeSocketFloat"), ("Fresnel Falloff", "NodeSocketFloat")):
+                       ("Glossiness", "NodeSocketFloat"), ("Fresnel Falloff", "NodeSocketFloat"),
+                       ("Anisotropy", "NodeSocketFloat")):
         group.interface.new_socket(name, in_out="INPUT", socket_type=kind)
     group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
     return group
