@@ -7,7 +7,7 @@ import pytest
 
 import reference
 import support  # noqa: F401
-from platelight.addon.ibl import anisotropy, equirect as eq, lobe_tilt, maps
+from platelight.addon.ibl import anisotropy, lobe_tilt, maps
 from platelight.addon.material.principled import roughness_to_glossiness
 
 
@@ -59,15 +59,12 @@ def test_look_ups_along_the_streak_bring_a_brushed_sphere_nearer_brute_force():
     glossiness = roughness_to_glossiness(roughness)
     reflected = 2 * (normals @ view)[:, None] * normals - view
 
-    def image(directions, gloss):
-        u, v = eq.dir_to_uv(directions)
-        return sum(w * eq.sample_bilinear(found[k], u, v) for k, w in maps.map_weights(gloss).items() if w)
-
-    round_lobe = image(lobe_tilt.tilted(reflected, normals, glossiness), glossiness)
+    round_lobe = maps.blended_lookup(found, glossiness, lobe_tilt.tilted(reflected, normals, glossiness))
     narrow = anisotropy.narrow_glossiness(glossiness, amount)
     spread = anisotropy.spread(normals, tangents, view, anisotropy.streak_slope(glossiness, amount))
     centre = lobe_tilt.tilted(reflected, normals, narrow)
-    streak = sum(image(d, narrow) for d in anisotropy.tap_directions(centre, spread)) / anisotropy.TAP_COUNT
+    streak = sum(maps.blended_lookup(found, narrow, d)
+                 for d in anisotropy.tap_directions(centre, spread)) / anisotropy.TAP_COUNT
 
     def psnr(a):            # clipped at the peak, as the benchmarks score (the sun's peak dominates)
         peak = np.percentile(truth, 99.5)

@@ -24,7 +24,8 @@ import numpy as np
 from ..errors import PlateLightError
 from ..exr_io import write_exr
 from . import sh
-from .equirect import check_shape, downsample_area, texel_directions, texel_solid_angles
+from .equirect import (check_shape, dir_to_uv, downsample_area, sample_bilinear, texel_directions,
+                       texel_solid_angles)
 
 MAP_NAMES = ("diffuse", "glossy1", "glossy2", "specular")
 # The glossiness rule (design.md), written once: map k is exact at glossiness n = k / 3, and in
@@ -99,6 +100,14 @@ def glossiness_to_roughness(glossiness):
 def map_weights(glossiness: float) -> dict[str, float]:
     """tent_weights() of one glossiness, by map name."""
     return {name: float(w) for name, w in zip(MAP_NAMES, tent_weights(float(glossiness)))}
+
+
+def blended_lookup(maps_by_name: dict, glossiness: float, directions: np.ndarray) -> np.ndarray:
+    """The maps blended at ``glossiness`` and read bilinearly along unit ``directions`` (..., 3):
+    the probe group's specular look-up in numpy (no Fresnel, albedo or parallax)."""
+    u, v = dir_to_uv(directions)
+    return sum(w * sample_bilinear(maps_by_name[name], u, v)
+               for name, w in map_weights(glossiness).items() if w > 0)
 
 
 @dataclasses.dataclass

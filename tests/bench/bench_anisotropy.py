@@ -24,8 +24,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import reference  # noqa: E402
 import support  # noqa: E402,F401
-from bench_lobes import HDRIS, VIEW_AZIMUTHS, blended, lookups, psnr, sphere_view  # noqa: E402
-import bench_lobes  # noqa: E402
+from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, psnr, sphere_view  # noqa: E402
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps  # noqa: E402
@@ -42,13 +41,12 @@ def along_streak(found, normals, tangents, view, glossiness, amount):
     spread = anisotropy.spread(normals, tangents, view, anisotropy.streak_slope(glossiness, amount))
     centre = lookups(normals, view, narrow, True)
     taps = anisotropy.tap_directions(centre, spread)
-    return sum(blended(found, narrow, d) for d in taps) / len(taps)
+    return sum(maps.blended_lookup(found, narrow, d) for d in taps) / len(taps)
 
 
 def main(out_dir: pathlib.Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
-    bench_lobes.PIXELS = PIXELS
-    views = [sphere_view(a) for a in VIEW_AZIMUTHS]
+    views = [sphere_view(a, pixels=PIXELS) for a in VIEW_AZIMUTHS]
     rows = []
     for name in HDRIS:
         env = np.maximum(read_exr(bundled_hdris()[name]), 0).astype(np.float32)
@@ -62,7 +60,7 @@ def main(out_dir: pathlib.Path) -> None:
                 tangents = reference.tangents_about_z(normals)
                 want = reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
                                                  normals, tangents, view, TRUTH_HEIGHT)
-                round_lobe = blended(found, glossiness, lookups(normals, view, glossiness, True))
+                round_lobe = maps.blended_lookup(found, glossiness, lookups(normals, view, glossiness, True))
                 round_scores.append(psnr(round_lobe, want))
                 streak_scores.append(psnr(along_streak(found, normals, tangents, view, glossiness, amount), want))
             rows.append((name, roughness, amount, float(np.mean(round_scores)), float(np.mean(streak_scores))))

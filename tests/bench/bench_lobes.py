@@ -3,7 +3,7 @@ object PSNR). numpy only, no Blender.
 
 A metal sphere (no Fresnel or albedo: the lobe's shape alone) seen from three directions under a
 bundled HDRI. Truth: for every pixel, the radiance integrated over the probe's texels (256 rows)
-with Cycles' GGX microfacet lobe (D, height-correlated Smith G2) at that pixel's view, over the
+with Cycles' GGX microfacet lobe (D, height-correlated Smith G2; tests/reference.py) at that pixel's view, over the
 whole hemisphere above the surface. PlateLight: the maps blended by design.md's glossiness rule at the
 roughness's glossiness (addon/material/principled.py), with the glossy maps blurred by the paper's
 Phong lobes or by GGX's (MapSettings.lobes), looked up along the mirror direction R (the paper) or
@@ -21,10 +21,10 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+import reference  # noqa: E402
 import support  # noqa: E402,F401
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
-from platelight.addon.ibl import equirect as eq  # noqa: E402
 from platelight.addon.ibl import lobe_tilt, maps  # noqa: E402
 from platelight.addon.material.principled import roughness_to_glossiness  # noqa: E402
 
@@ -36,50 +36,19 @@ TRUTH_HEIGHT = 256
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
-def sphere_view(azimuth, elevation=15.0):
-    """Normals and the (constant) view direction of an orthographic sphere's pixels."""
+def sphere_view(azimuth, elevation=15.0, pixels=PIXELS):
+    """Normals and the (constant) view direction of an orthographic sphere ``pixels`` across."""
     e, a = np.radians(elevation), np.radians(azimuth)
     view = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
     right = np.cross([0.0, 0.0, 1.0], view)
     right /= np.linalg.norm(right)
     up = np.cross(view, right)
-    xs = (np.arange(PIXELS) + 0.5) / PIXELS * 2 - 1
+    xs = (np.arange(pixels) + 0.5) / pixels * 2 - 1
     x, y = np.meshgrid(xs, -xs)
     inside = x ** 2 + y ** 2 < 0.995
     x, y = x[inside], y[inside]
     z = np.sqrt(1 - x * x - y * y)
     return x[:, None] * right + y[:, None] * up + z[:, None] * view, view
-
-
-class GGXTruth:
-    """Brute-force GGX reflection of a lat-long probe (Cycles' microfacet model, no Fresnel)."""
-
-    def __init__(self, env):
-        self.dirs = eq.texel_directions(TRUTH_HEIGHT, 2 * TRUTH_HEIGHT).reshape(-1, 3)
-        self.solid = eq.texel_solid_angles(TRUTH_HEIGHT, 2 * TRUTH_HEIGHT).reshape(-1)
-        self.radiance = eq.downsample_area(env, TRUTH_HEIGHT).astype(np.float64).reshape(-1, 3)
-
-    def pixel(self, normal, view, alpha):
-        above = self.dirs @ normal > 0
-        light, radiance, solid = self.dirs[above], self.radiance[above], self.solid[above]
-        half = light + view
-        half /= np.linalg.norm(half, axis=1, keepdims=True)
-        a2 = alpha * alpha
-        cos_h = half @ normal
-        d = a2 / (np.pi * (cos_h * cos_h * (a2 - 1) + 1) ** 2)
-
-        def smith(c):
-            return (np.sqrt(1 + a2 * (1 - c * c) / np.maximum(c * c, 1e-12)) - 1) / 2
-
-        weight = d / (1 + smith(normal @ view) + smith(light @ normal)) * solid
-        return (weight[:, None] * radiance).sum(0) / weight.sum()
-
-
-def blended(maps_by_name, glossiness, directions):
-    weights = maps.map_weights(glossiness)
-    u, v = eq.dir_to_uv(directions)
-    return sum(w * eq.sample_bilinear(maps_by_name[name], u, v)
-               for name, w in weights.items() if w > 0)
 
 
 def lookups(normals, view, glossiness, tilt):
@@ -104,17 +73,17 @@ def main(out_dir: pathlib.Path) -> None:
         env = np.maximum(read_exr(bundled_hdris()[name]), 0).astype(np.float32)
         lobe_maps = {lobes: maps.compute_maps(env, maps.MapSettings(lobes=lobes)).maps
                      for lobes in maps.LOBES}
-        truth = GGXTruth(env)
         for roughness in ROUGHNESS:
             t0 = time.perf_counter()
-            truths = [np.array([truth.pixel(n, view, roughness ** 2) for n in normals])
-                      for normals, view in views]
+            alpha = roughness ** 2
+            truths = [reference.anisotropic_ggx(env, alpha, alpha, normals, reference.tangents_about_z(normals),
+                                                view, TRUTH_HEIGHT) for normals, view in views]
             glossiness = roughness_to_glossiness(roughness)
             scores = {}
             for lobes, found in lobe_maps.items():
                 for tilt in (False, True):
                     scores[(lobes, tilt)] = float(np.mean([
-                        psnr(blended(found, glossiness, lookups(normals, view, glossiness, tilt)), t)
+                        psnr(maps.blended_lookup(found, glossiness, lookups(normals, view, glossiness, tilt)), t)
                         for (normals, view), t in zip(views, truths)]))
             rows.append((name, roughness, glossiness, scores))
             print(f"{name:10s} r {roughness:.2f}  " + "  ".join(f"{k}{' tilted' * t} {v:6.2f} dB"
