@@ -10,6 +10,9 @@ PROBE_NODE = "PlateLight Probe"             # the material's node holding that g
 PROBE_CENTRE_NODE = "PlateLight Probe Centre"   # in a probe group: the bake's centre (parallax)
 PARALLAX_NODE = "PlateLight Parallax"       # in a probe group: 1 = parallax-corrected look-ups
 DIFFUSE_PARALLAX_NODE = "PlateLight Diffuse Parallax"   # in a probe group: 1 = irradiance grid
+SUN_DIRECTION_NODE = "PlateLight Sun Direction"   # in a probe group: the sun shaded through the lobe...
+SUN_COLOR_NODE = "PlateLight Sun Irradiance"    # ... its rgb (0: no sun) ...
+SUN_ANGLE_NODE = "PlateLight Sun Angle"         # ... and its angular diameter (radians)
 GRID_LO_NODE = "PlateLight Grid Low Corner"  # in a probe group: the irradiance grid's box...
 GRID_SCALE_NODE = "PlateLight Grid Scale"    # ... 1 / its size per axis (0 on a flat axis)
 GRID_POINTS_NODE = "PlateLight Grid Points"  # ... points per axis

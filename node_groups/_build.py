@@ -70,6 +70,20 @@ def tent_weights(g, glossiness):
             for k in range(len(MAP_NAMES))]
 
 
+def float_curve(g, xs, ys, value):
+    """A Float Curve through (xs, ys), linear between the points and flat beyond them."""
+    node = g.node("ShaderNodeFloatCurve")
+    curve = node.mapping.curves[0]
+    while len(curve.points) < len(xs):
+        curve.points.new(0.0, 0.0)
+    for point, x, y in zip(curve.points, xs, ys):
+        point.location = (x, y)
+        point.handle_type = "VECTOR"
+    node.mapping.update()
+    g.link(value, node.inputs["Value"])
+    return node.outputs["Value"]
+
+
 def sync_interface(tree, sockets):
     """Make the group's interface exactly ``sockets`` (in order), reusing items with the same name
     and type so that links and values in existing materials survive an upgrade.

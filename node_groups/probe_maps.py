@@ -15,28 +15,36 @@ from __future__ import annotations
 import math
 import os
 
+import numpy as np
+
 import bpy
 
 from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
-from ..addon.ibl import irradiance_grid
+from ..addon.ibl import irradiance_grid, sun_lobe
 from ..addon.ibl.anisotropy import TAP_SLOPES
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
 from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, map_filename
-from ._build import VERSION_KEY, Graph, io_nodes, sync_interface, tent_weights
+from ._build import VERSION_KEY, Graph, float_curve, io_nodes, sync_interface, tent_weights
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 7                          # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 8                          # 3: parallax-corrected specular look-ups (distance map)
                                      # 4: diffuse look-ups from the irradiance grid
                                      # 5: the grid's atlas read by Environment Textures (EEVEE)
                                      # 6: glossy look-ups narrowed by their footprint
                                      # 7: anisotropic look-ups along the Specular Spread
+                                     # 8: the sun through the lobe, the other maps sunless
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
+SUN_NODES = (names.SUN_DIRECTION_NODE, names.SUN_COLOR_NODE, names.SUN_ANGLE_NODE)
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
               names.GRID_POINTS_NODE, names.GRID_HEIGHT_NODE)
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
+# What the specular look-ups read: the sunless maps (the maps themselves without a sun) and the
+# mirror map, which keeps the sun's disc.
+SUNLESS_NAMES = {sun_lobe.sunless_name(name): name for name in sun_lobe.SUNLESS_MAPS}
+SPECULAR_MAPS = tuple(sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n for n in MAP_NAMES)
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
            ("Refraction Term", "NodeSocketColor"))
@@ -120,13 +128,19 @@ def bind_images(tree):
     folder = tree[FOLDER_KEY]
     kind, first = probe_maps_status(folder)
     path = bpy.path.abspath(folder) if folder else ""
+    frame = first if kind == "sequence" else None
+    record = read_record(path, frame) if kind != "missing" else {}
+    sun = _steady_sun(path, record, kind == "sequence") if kind != "missing" else None
     for node in tree.nodes:
         name = node.get("platelight_map")
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
             continue
-        frame = first if kind == "sequence" else None
         if kind == "missing":
             filename = None
+        elif name in SUNLESS_NAMES:
+            # without a sun the sunless look-ups read the maps themselves (the sun term is 0)
+            base = SUNLESS_NAMES[name]
+            filename = sun_lobe.sunless_filename(base, frame) if sun else map_filename(base, frame)
         elif name == DISTANCE_NAME:
             filename = distance_filename(frame)
         elif name == irradiance_grid.GRID_NAME:
@@ -152,7 +166,7 @@ def bind_images(tree):
             user.frame_duration = SEQUENCE_FRAMES
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
-    record = read_record(path, first if kind == "sequence" else None) if kind != "missing" else {}
+    _bind_sun(tree, sun)
     _bind_parallax(tree, record)
     _bind_grid(tree, record, moving=kind == "sequence" and _grid_moves(path))
 
@@ -179,6 +193,46 @@ def _bind_parallax(tree, record):
             centre_node.inputs[axis].default_value = float(value)
     on = _scene_setting("probe_parallax") and _has_baked(tree, DISTANCE_NAME) and origin is not None
     switch.outputs[0].default_value = 1.0 if on else 0.0
+
+
+
+
+def _steady_sun(path, record, sequence):
+    """The sun the group shades through the lobe: the bake record's, when the scene asks for it
+    (scene.platelight.probe_sun_lobe), the bake wrote every sunless map beside its maps, and, over
+    a baked sequence, every frame has the same sun (the group holds one; a sun that an object
+    moves out of would otherwise shine on in frames whose maps no longer hold it). Else None:
+    the maps keep their sun."""
+    if not _scene_setting("probe_sun_lobe"):
+        return None
+    sun = sun_lobe.from_record(record)
+    if sun is None:
+        return None
+    frames = _sequence_frames(path) if sequence else {}
+    for name in sun_lobe.SUNLESS_MAPS:
+        for frame in frames.get(name, [None]):
+            present = os.path.isfile(os.path.join(path, map_filename(name, frame)))
+            if present and not os.path.isfile(os.path.join(path, sun_lobe.sunless_filename(name, frame))):
+                return None
+    if sequence:
+        for frame in frames.get(next(iter(frames), ""), []):
+            other = sun_lobe.from_record(read_record(path, frame))
+            if other is None or not (np.allclose(other.direction, sun.direction, atol=1e-4)
+                                     and np.allclose(other.rgb, sun.rgb, rtol=1e-3, atol=1e-6)):
+                return None
+    return sun
+
+
+def _bind_sun(tree, sun):
+    """The sun's direction, irradiance (0 without a sun: no term) and size into the group."""
+    nodes = [tree.nodes.get(name) for name in SUN_NODES]
+    if any(node is None for node in nodes):
+        return
+    direction, color, angle = nodes
+    for axis, d, c in zip("XYZ", sun.direction if sun else (0.0, 0.0, 1.0), sun.rgb if sun else (0.0,) * 3):
+        direction.inputs[axis].default_value = float(d)
+        color.inputs[axis].default_value = float(c)
+    angle.outputs[0].default_value = float(sun.angle) if sun else 0.0
 
 
 def _grid_moves(path) -> bool:
@@ -423,6 +477,66 @@ def _irradiance_grid(g, direction):
     return total
 
 
+def _sun_highlight(g, inp):
+    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V) A) of the group's sun (its irradiance 0
+    when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas."""
+    direction = _named_vector(g, names.SUN_DIRECTION_NODE)
+    color = _named_vector(g, names.SUN_COLOR_NODE)
+    angle = _named_value(g, names.SUN_ANGLE_NODE, 0.0)
+    n, view, tangent = inp["Diffuse Direction"], inp["Lobe View"], inp["Lobe Tangent"]
+    bitangent = g.vmath("CROSS_PRODUCT", n, tangent)
+    split = g.node("ShaderNodeSeparateXYZ")
+    g.link(inp["Lobe Alphas"], split.inputs["Vector"])
+    widening = g.math("MULTIPLY", g.math("MULTIPLY", angle, angle), sun_lobe.SIZE_WIDENING)
+    a_t, a_b = (g.math("SQRT", g.math("ADD", g.math("POWER", g.math("MAXIMUM", split.outputs[axis],
+                                                                    sun_lobe.MIN_ALPHA), 2.0), widening))
+                for axis in (0, 1))
+    half = g.vmath("NORMALIZE", g.vmath("ADD", direction, view))
+
+    def squared(x):
+        return g.math("MULTIPLY", x, x)
+    stretched = g.math("ADD", g.math("ADD", squared(g.math("DIVIDE", g.vmath("DOT_PRODUCT", half, tangent), a_t)),
+                                     squared(g.math("DIVIDE", g.vmath("DOT_PRODUCT", half, bitangent), a_b))),
+                       squared(g.vmath("DOT_PRODUCT", half, n)))
+    d = g.math("DIVIDE", 1.0, g.math("MULTIPLY", g.math("MULTIPLY", math.pi, g.math("MULTIPLY", a_t, a_b)),
+                                     squared(stretched)))
+
+    def smith(w):
+        projected = g.math("ADD", squared(g.math("MULTIPLY", g.vmath("DOT_PRODUCT", w, tangent), a_t)),
+                           squared(g.math("MULTIPLY", g.vmath("DOT_PRODUCT", w, bitangent), a_b)))
+        ratio = g.math("DIVIDE", projected, g.math("MAXIMUM", squared(g.vmath("DOT_PRODUCT", w, n)), 1e-12))
+        return g.math("MULTIPLY", g.math("SUBTRACT", g.math("SQRT", g.math("ADD", ratio, 1.0)), 1.0), 0.5)
+    mu_v = g.vmath("DOT_PRODUCT", view, n)
+    mu_l = g.vmath("DOT_PRODUCT", direction, n)
+    masking = g.math("ADD", g.math("ADD", smith(view), smith(direction)), 1.0)
+    # sun_lobe.albedo_roughness: the RMS alpha's roughness
+    roughness = g.math("POWER", g.math("MULTIPLY", g.math("ADD", squared(split.outputs[0]), squared(split.outputs[1])),
+                                       0.5), 0.25)
+    denominator = g.math("MULTIPLY", g.math("MULTIPLY", masking, g.math("MAXIMUM", mu_v, 1e-4)),
+                         g.math("MULTIPLY", 4.0, _lobe_albedo(g, roughness, mu_v)))
+    above = g.math("MULTIPLY", g.math("GREATER_THAN", mu_v, 0.0), g.math("GREATER_THAN", mu_l, 0.0))
+    return g.vmath("SCALE", color, scale=g.math("MULTIPLY", above, g.math("DIVIDE", d, denominator)))
+
+
+def _lobe_albedo(g, roughness, mu):
+    """sun_lobe.albedo in nodes: each roughness row as a curve over mu, blended by tent weights."""
+    knots = sun_lobe.ALBEDO_ROUGHNESS
+    r = g.math("MINIMUM", g.math("MAXIMUM", roughness, knots[0]), knots[-1])
+    mu = g.math("MINIMUM", g.math("MAXIMUM", mu, 0.0), 1.0)
+    total = None
+    for k, (knot, row) in enumerate(zip(knots, sun_lobe.ALBEDO)):
+        weight = 1.0
+        if k > 0:
+            weight = g.math("DIVIDE", g.math("SUBTRACT", r, knots[k - 1]), knot - knots[k - 1])
+        if k + 1 < len(knots):
+            above = g.math("DIVIDE", g.math("SUBTRACT", knots[k + 1], r), knots[k + 1] - knot)
+            weight = above if k == 0 else g.math("MINIMUM", weight, above)
+        weight = g.math("MINIMUM", g.math("MAXIMUM", weight, 0.0), 1.0)
+        term = g.math("MULTIPLY", weight, float_curve(g, sun_lobe.ALBEDO_MU, row, mu))
+        total = term if total is None else g.math("ADD", total, term)
+    return total
+
+
 def _build(tree):
     g = Graph(tree)
     gin, gout = io_nodes(g)
@@ -434,9 +548,9 @@ def _build(tree):
         g.link(direction, node.inputs["Vector"])
         return node.outputs["Color"]
 
-    def blended(direction, weights):
+    def blended(direction, weights, map_names=MAP_NAMES):
         total = None
-        for name, weight in zip(MAP_NAMES, weights):
+        for name, weight in zip(map_names, weights):
             term = g.vmath("SCALE", env(name, direction), scale=weight)
             total = term if total is None else g.vmath("ADD", total, term)
         return total
@@ -456,9 +570,12 @@ def _build(tree):
     for slope in TAP_SLOPES:
         tap = g.vmath("NORMALIZE", g.vmath("ADD", specular_direction,
                                            g.vmath("SCALE", inp["Specular Spread"], scale=slope)))
-        term = blended(tap, specular_weights)
+        term = blended(tap, specular_weights, SPECULAR_MAPS)
         streak = term if streak is None else g.vmath("ADD", streak, term)
     streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
+    # The sun the sunless maps lack, through the lobe, for every map's share but the mirror's.
+    sun_share = g.math("SUBTRACT", 1.0, specular_weights[MAP_NAMES.index("specular")])
+    streak = g.vmath("ADD", streak, g.vmath("SCALE", _sun_highlight(g, inp), scale=sun_share))
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], streak)
     refraction_weights = tent_weights(g, inp["Map Glossiness"])
     channels = []

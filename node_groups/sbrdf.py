@@ -18,6 +18,9 @@ maps and outputs the shader. The material wires the two together (operators/mate
     the probe group reads the maps along d + x_k spread, spread = 2 w (1 - f) ((T'.R) N + (N.R) T'),
     w the slope width the narrow lobe lacks along T' (0 at a = 0: one look-up)
     Lr  = alpha rho_d' D(N) + rho_s' w S(d, n') + (1 - alpha) rho_d (1 - rho_s') T(t, n') + E
+    The lobe the probe group shines the probe's sun through (addon/ibl/sun_lobe.py): GGX with the
+    alphas r^2 / aspect, r^2 aspect of n's roughness with Fresnel's f, seen from the Lobe View
+    reflect(p/|p|, N) (the view itself for the default C), along the rotated tangent T'.
 """
 from __future__ import annotations
 
@@ -28,12 +31,12 @@ from ..addon.ibl.anisotropy import ASPECT_SCALE
 from ..addon.ibl.lobe_tilt import MU, TILT
 from ..addon.ibl.maps import GLOSSINESS_KNOTS, MAP_NAMES, ROUGHNESS_KNOTS
 from ..addon.material.params import PARAMETERS
-from ._build import VERSION_KEY, Graph, io_nodes, sync_interface, tent_weights
+from ._build import VERSION_KEY, Graph, float_curve, io_nodes, sync_interface, tent_weights
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
 # 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt;
-# 4: Anisotropy input, Specular Spread output
-VERSION = 4
+# 4: Anisotropy input, Specular Spread output; 5: Lobe View, Lobe Tangent, Lobe Alphas outputs
+VERSION = 5
 PHI_MIN = 1.0e-4
 
 # The lookup outputs, consumed by name by every "PlateLight Probe" group.
@@ -42,6 +45,9 @@ LOOKUP_SOCKETS = (
     ("Specular Direction", "NodeSocketVector"),
     ("Specular Spread", "NodeSocketVector"),
     ("Map Glossiness", "NodeSocketFloat"),
+    ("Lobe View", "NodeSocketVector"),
+    ("Lobe Tangent", "NodeSocketVector"),
+    ("Lobe Alphas", "NodeSocketVector"),
     ("Diffuse Weight", "NodeSocketColor"),
     ("Specular Weight", "NodeSocketColor"),
     ("Refraction Direction R", "NodeSocketVector"),
@@ -144,7 +150,7 @@ def _build(tree):
     exponent = g.math("SUBTRACT", g.math("DIVIDE", 1.0, phi), 1.0)
     fresnel = g.math("POWER", g.math("SUBTRACT", 1.0, cos_v), exponent)
     spec_albedo = g.mix("RGBA", fresnel, inp["Specular Albedo"], (1.0, 1.0, 1.0, 1.0))
-    narrow, streak = _anisotropy(g, inp["Glossiness"], inp["Anisotropy"])
+    narrow, streak, alphas = _anisotropy(g, inp["Glossiness"], inp["Anisotropy"], fresnel)
     gloss = g.math("ADD", narrow, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, narrow), fresnel))
     falloff_f = g.math("ADD", falloff, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, falloff), fresnel))
     # The maps already hold the lobe's integral, so the paper's cosine g' darkens every rim (a
@@ -183,6 +189,10 @@ def _build(tree):
     spread_scale = g.math("MULTIPLY", g.math("MULTIPLY", streak, 2.0), g.math("SUBTRACT", 1.0, fresnel))
     g.link(g.vmath("SCALE", across, scale=spread_scale), gout.inputs["Specular Spread"])
     g.link(gloss, gout.inputs["Map Glossiness"])
+    # The sun's lobe is seen from the direction whose mirror is the Lafortune peak.
+    g.link(g.vmath("REFLECT", g.vmath("SCALE", lookup, scale=-1.0), n), gout.inputs["Lobe View"])
+    g.link(t_rot, gout.inputs["Lobe Tangent"])
+    g.link(alphas, gout.inputs["Lobe Alphas"])
     g.link(diffuse_w, gout.inputs["Diffuse Weight"])
     g.link(specular_w, gout.inputs["Specular Weight"])
     g.link(refr_w, gout.inputs["Refraction Weight"])
@@ -193,19 +203,25 @@ def _build(tree):
     gout.location = (200 * (g.column // 12 + 1), 0)
 
 
-def _anisotropy(g, glossiness, anisotropy):
-    """anisotropy.narrow_glossiness and streak_slope in nodes: (narrow glossiness, slope width)."""
+def _anisotropy(g, glossiness, anisotropy, fresnel):
+    """anisotropy.narrow_glossiness and streak_slope in nodes, and the GGX alphas of the lobe
+    with Fresnel's glossiness n + (1 - n) f: (narrow glossiness, slope width, (alpha_t, alpha_b, 0))."""
     amount = g.math("MINIMUM", g.math("MAXIMUM", anisotropy, 0.0), 1.0)
     aspect = g.math("SQRT", g.math("MULTIPLY_ADD", amount, -ASPECT_SCALE, 1.0))
-    roughness = _curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS, glossiness)
+    roughness = float_curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS, glossiness)
+    sharpened = g.math("ADD", glossiness, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, glossiness), fresnel))
+    alpha = g.math("POWER", float_curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS, sharpened), 2.0)
+    alphas = g.node("ShaderNodeCombineXYZ")
+    g.link(g.math("DIVIDE", alpha, aspect), alphas.inputs["X"])
+    g.link(g.math("MULTIPLY", alpha, aspect), alphas.inputs["Y"])
     narrow_roughness = g.math("MULTIPLY", roughness, g.math("SQRT", aspect))
     # a difference of one curve: anisotropy 0 gives back the glossiness exactly
     narrow = g.math("ADD", glossiness, g.math(
-        "SUBTRACT", _curve(g, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1], narrow_roughness),
-        _curve(g, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1], roughness)))
+        "SUBTRACT", float_curve(g, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1], narrow_roughness),
+        float_curve(g, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1], roughness)))
     width = g.math("SQRT", g.math("MAXIMUM", g.math("SUBTRACT", g.math("DIVIDE", 1.0, g.math(
         "MULTIPLY", aspect, aspect)), g.math("MULTIPLY", aspect, aspect)), 0.0))
-    return narrow, g.math("MULTIPLY", g.math("MULTIPLY", roughness, roughness), width)
+    return narrow, g.math("MULTIPLY", g.math("MULTIPLY", roughness, roughness), width), alphas.outputs["Vector"]
 
 
 def _tilt_offset(g, glossiness, mu):
@@ -216,20 +232,6 @@ def _tilt_offset(g, glossiness, mu):
     for name, weight in zip(MAP_NAMES, tent_weights(g, glossiness)):
         if not any(TILT[name]):
             continue
-        term = g.math("MULTIPLY", weight, _curve(g, MU, TILT[name], mu))
+        term = g.math("MULTIPLY", weight, float_curve(g, MU, TILT[name], mu))
         total = term if total is None else g.math("ADD", total, term)
     return total
-
-
-def _curve(g, xs, ys, value):
-    """A Float Curve through (xs, ys), linear between the points and flat beyond them."""
-    node = g.node("ShaderNodeFloatCurve")
-    curve = node.mapping.curves[0]
-    while len(curve.points) < len(xs):
-        curve.points.new(0.0, 0.0)
-    for point, x, y in zip(curve.points, xs, ys):
-        point.location = (x, y)
-        point.handle_type = "VECTOR"
-    node.mapping.update()
-    g.link(value, node.inputs["Value"])
-    return node.outputs["Value"]

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from platelight.addon.ibl import anisotropy
+from platelight.addon.ibl import anisotropy, sun_lobe
+from platelight.addon.ibl.maps import glossiness_to_roughness, tent_weights
 from platelight.addon.ibl.lobe_tilt import tilt_offset
 
 ORDER = ("diffuse", "glossy1", "glossy2", "specular")
@@ -67,9 +68,11 @@ def refract(i, n, eta):
     return np.where(k < 0, 0.0, t)
 
 
-def sbrdf(P, view, maps, p):
+def sbrdf(P, view, maps, p, sun=None, sunless=None):
     """Lr per point. P: (..., 3) object-space positions on a unit sphere at the origin (the
-    shading normal is P/|P|, the tangent circles the object Z axis); view: surface->viewer."""
+    shading normal is P/|P|, the tangent circles the object Z axis); view: surface->viewer.
+    ``sun`` (a lights.DirectionalLight) and ``sunless`` (the sunless maps by name): the specular
+    look-ups read those maps and add the sun through the lobe (addon/ibl/sun_lobe.py)."""
     N = _norm(P)
     R = np.broadcast_to(_norm(view), N.shape)
     t0 = np.stack([-P[..., 1], P[..., 0], np.zeros(P.shape[:-1])], axis=-1)
@@ -104,9 +107,20 @@ def sbrdf(P, view, maps, p):
     # an anisotropic lobe: the maps read along the streak, narrowing with the Fresnel glossiness
     slope = anisotropy.streak_slope(p["glossiness"], amount) * (1 - f[..., 0])
     taps = anisotropy.tap_directions(spec_dir, anisotropy.spread(N, Tr, R, slope))
-    lr = lr + rho_s * g2 * sum(blend(maps, d, n2) for d in taps) / len(taps)
+    specular_maps = dict(maps, **(sunless or {}))
+    specular = sum(blend(specular_maps, d, n2) for d in taps) / len(taps)
+    if sun is not None:
+        # GGX of the Fresnel-sharpened glossiness, seen from the view whose mirror is the peak
+        alpha = glossiness_to_roughness(p["glossiness"] + (1 - p["glossiness"]) * f[..., 0]) ** 2
+        aspect = anisotropy.aspect(amount)
+        peak_unit = _norm(peak)
+        lobe_view = 2 * _dot(N, peak_unit) * N - peak_unit
+        share = 1.0 - tent_weights(n2[..., 0])[3]
+        specular = specular + share[..., None] * sun_lobe.highlight(N, Tr, lobe_view, alpha / aspect,
+                                                                    alpha * aspect, sun)
+    lr = lr + rho_s * g2 * specular
     refr = np.zeros_like(lr)
-    dirs = [spec_dir, N]
+    dirs = [spec_dir, N, *taps]
     for c, sign in enumerate((-1.0, 0.0, 1.0)):
         ior = max(p["ior"] + sign * p["dispersion"], 1.0)
         t = refract(-R, N, 1.0 / ior)

@@ -130,3 +130,36 @@ def interior_mask(alpha: np.ndarray) -> np.ndarray:
             m &= np.roll(np.roll(full, dy, 0), dx, 1)
     m[0, :] = m[-1, :] = m[:, 0] = m[:, -1] = False
     return m
+
+
+def render_cases(bpy, folder: pathlib.Path, cases: dict) -> dict:
+    """Spheres shaded by the SBRDF with each case's parameters, bound to the probe ``folder``
+    (maps already written), with the exact sphere normal; the render and a position pass."""
+    import dataclasses
+
+    from bl_ext.dev.platelight.node_groups import sbrdf_material as sm
+    from platelight.addon.material.params import SBRDFParams
+
+    spheres, (cols, rows) = setup_scene(bpy, len(cases))
+    for ob, values in zip(spheres, cases.values()):
+        ob.platelight.probe_dir = str(folder)
+        mat = sm.apply_sbrdf_material(ob, params=dataclasses.replace(SBRDFParams(), **values))
+        # Exact sphere normal (object coordinates), so the reference knows N per pixel.
+        tc = mat.node_tree.nodes.new("ShaderNodeTexCoord")
+        mat.node_tree.links.new(tc.outputs["Object"], sm.sbrdf_node(mat).inputs["Normal"])
+    image = render(bpy, folder.parent / "sbrdf.exr")
+    pos_mat = position_material(bpy)
+    for ob in spheres:
+        ob.material_slots[0].material = pos_mat
+    pos = render(bpy, folder.parent / "position.exr")
+    return dict(image=image, pos=pos, cols=cols, size=image.shape[0] // rows)
+
+
+def case_tile(rendered: dict, index: int):
+    """(rendered colour, object-space position, interior mask) of case ``index``'s sphere."""
+    r, c = divmod(index, rendered["cols"])
+    s = rendered["size"]
+    tile = np.s_[r * s:(r + 1) * s, c * s:(c + 1) * s]
+    image, pos = rendered["image"][tile], rendered["pos"][tile]
+    mask = interior_mask(pos[..., 3]) & interior_mask(image[..., 3])
+    return image[..., :3].astype(np.float64), (pos[..., :3].astype(np.float64) - 0.5) * 4.0, mask

@@ -140,6 +140,14 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         default=True,
         update=lambda self, context: _parallax_changed(self, context),
     )
+    probe_sun_lobe: BoolProperty(
+        name="Sun Highlight",
+        description="Shade the probe's sun (a small, very bright light the bake finds in it) "
+        "through each glossy lobe's own GGX shape, and read the glossy maps without it: exact "
+        "highlights, streaks on brushed metal; off: the paper's maps, the sun blurred into them",
+        default=True,
+        update=lambda self, context: _parallax_changed(self, context),
+    )
     pack_maps: BoolProperty(
         name="Pack Maps",
         description="Also pack the baked maps into the .blend (one image per map file, updated in "

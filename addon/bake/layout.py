@@ -13,6 +13,7 @@ from ..fileio import write_json_atomic
 from ..ibl.distance import distance_filename
 from ..ibl.irradiance_grid import grid_filename
 from ..ibl.maps import MAP_NAMES, map_filename
+from ..ibl.sun_lobe import SUNLESS_MAPS, sunless_filename
 
 WORLD_FOLDER = "_world"
 DEFAULT_MAPS_DIR = "//platelight_maps"   # next to the .blend (scene.platelight.maps_dir's default)
@@ -41,8 +42,9 @@ def record_filename(frame: int | None) -> str:
 
 def lookup_filenames(frame: int | None) -> list[str]:
     """The files of a frame that the probe group reads beside the four maps: the parallax
-    look-ups' distance map and irradiance grid (each present only when the bake wanted it)."""
-    return [distance_filename(frame), grid_filename(frame)]
+    look-ups' distance map and irradiance grid, and the sunless maps (each present only when
+    the bake wanted it)."""
+    return [distance_filename(frame), grid_filename(frame)] + [sunless_filename(n, frame) for n in SUNLESS_MAPS]
 
 
 def read_record(folder: str, frame: int | None) -> dict:
@@ -76,10 +78,12 @@ def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:
     glossy), so no stale map is ever picked up. Returns the names removed."""
     removed = []
     for name in MAP_NAMES:
-        path = os.path.join(folder, map_filename(name, frame))
-        if name not in keep and os.path.isfile(path):
-            os.unlink(path)
-            removed.append(name)
+        for path in [os.path.join(folder, map_filename(name, frame))] + (
+                [os.path.join(folder, sunless_filename(name, frame))] if name in SUNLESS_MAPS else []):
+            if name not in keep and os.path.isfile(path):
+                os.unlink(path)
+                if name not in removed:
+                    removed.append(name)
     return removed
 
 

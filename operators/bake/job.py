@@ -23,7 +23,7 @@ from ...addon.bake.frames import sample_frames
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
 from ...addon.ibl import distance as distance_maps
-from ...addon.ibl import irradiance_grid
+from ...addon.ibl import irradiance_grid, sun_lobe
 from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, MapSettings, compute_maps,
                                prepare_environment, write_maps)
 from ..common import GEOMETRY_TYPES
@@ -319,6 +319,7 @@ class ProbeBake:
             result = compute_maps(env, settings, which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
+            sun = sun_lobe.bake_sunless(folder, env, settings, maps, key_frame)
             grid = {}
             if wants_distance:
                 points = distance_render.surface_points(ob, self.context.evaluated_depsgraph_get())
@@ -333,7 +334,7 @@ class ProbeBake:
             layout.remove_other_maps(folder, key_frame, keep=maps)
             layout.write_record(folder, key_frame, digest, maps, object=ob.name, scene_frame=frame,
                                 origin=[float(x) for x in origin],
-                                probe_size=[int(env.shape[1]), int(env.shape[0])], **grid)
+                                probe_size=[int(env.shape[1]), int(env.shape[0])], **grid, **sun)
             self.baked.append((ob.name, frame))
             status = "baked"
         if self.check_only:
@@ -396,7 +397,8 @@ class ProbeBake:
             result = compute_maps(env, settings, which=MAP_NAMES)
             self.warnings.extend(f"world: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=None)
-            layout.write_record(folder, None, digest, MAP_NAMES, source=source or "render")
+            sun = sun_lobe.bake_sunless(folder, env, settings, MAP_NAMES, None)
+            layout.write_record(folder, None, digest, MAP_NAMES, source=source or "render", **sun)
             self.world_baked = True
         if scene.platelight.pack_maps:
             pack_maps(folder_rel, None, MAP_NAMES, refresh=not cached)

@@ -15,6 +15,7 @@ from ...addon.bake.needs import OWNER_INDIRECT
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
 from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
 from ...addon.ibl.maps import MapSettings, map_filename
+from ...addon.ibl.sun_lobe import VERSION as SUN_LOBE_VERSION
 
 
 def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_height=None, owner=None,
@@ -34,7 +35,7 @@ def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_heig
     return content_hash({
         **sized, **indirect, **with_grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
-        "distance": DISTANCE_VERSION,
+        "distance": DISTANCE_VERSION, "sun_lobe": SUN_LOBE_VERSION,
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
                      settings.probe_fast_world, settings.probe_owner_shadows,
                      settings.probe_distance],
@@ -62,6 +63,7 @@ def world_maps_hash(scene, world_digest, image, map_settings):
                          "rotation": image.rotation if image else None,
                          "heights": map_settings.heights,
                          "sampling": map_settings.sampling, **_lobes_key(map_settings),
+                         "sun_lobe": SUN_LOBE_VERSION,
                          "samples": None if source else scene.platelight.probe_samples,
                          "probe_height": None if source else scene.platelight.probe_height})
 

@@ -59,43 +59,22 @@ CASES = {
 def rendered(bpy_module, tmp_path_factory):
     bpy = bpy_module
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    from bl_ext.dev.platelight.node_groups import sbrdf_material as sm
-
     tmp = tmp_path_factory.mktemp("sbrdf")
     maps = sc.synthetic_maps()
     sc.write_maps(tmp / "probe", maps)
-    spheres, (cols, rows) = sc.setup_scene(bpy, len(CASES))
-    for ob, (name, values) in zip(spheres, CASES.items()):
-        ob.platelight.probe_dir = str(tmp / "probe")
-        params = dataclasses.replace(SBRDFParams(), **values)
-        mat = sm.apply_sbrdf_material(ob, params=params)
-        # Exact sphere normal (object coordinates), so the reference knows N per pixel.
-        tc = mat.node_tree.nodes.new("ShaderNodeTexCoord")
-        mat.node_tree.links.new(tc.outputs["Object"], sm.sbrdf_node(mat).inputs["Normal"])
-    image = sc.render(bpy, tmp / "sbrdf.exr")
-    pos_mat = sc.position_material(bpy)
-    for ob in spheres:
-        ob.material_slots[0].material = pos_mat
-    pos = sc.render(bpy, tmp / "position.exr")
-    return dict(image=image, pos=pos, maps=maps, cols=cols, size=image.shape[0] // rows)
+    return dict(sc.render_cases(bpy, tmp / "probe", CASES), maps=maps)
 
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_node_group_matches_numpy_reference(rendered, case):
-    index = list(CASES).index(case)
-    r, c = divmod(index, rendered["cols"])
+    got, P, mask = sc.case_tile(rendered, list(CASES).index(case))
     s = rendered["size"]
-    tile = np.s_[r * s:(r + 1) * s, c * s:(c + 1) * s]
-    image, pos = rendered["image"][tile], rendered["pos"][tile]
-    mask = sc.interior_mask(pos[..., 3]) & sc.interior_mask(image[..., 3])
-    P = (pos[..., :3].astype(np.float64) - 0.5) * 4.0
     params = dataclasses.asdict(dataclasses.replace(SBRDFParams(), **CASES[case]))
     want, dirs = ref.sbrdf(P, sc.VIEW, rendered["maps"], params)
     # Cycles wraps vertically at the poles; keep lookups more than a texel row away from them.
     for d in dirs:
         mask &= ~ref.near_pole(d, rendered["maps"])
     assert mask.sum() > 0.5 * math.pi * (s / 2.2) ** 2 * 0.6, "too few pixels compared"
-    got = image[..., :3].astype(np.float64)
     rel = np.abs(got - want) / np.maximum(np.abs(want), 1e-2)
     worst = rel[mask].max()
     # 2e-3: Blender evaluates the look-up tilt's Float Curves from 256-entry tables

@@ -1,0 +1,88 @@
+"""The probe group shades a baked sun through the lobe as addon/ibl/sun_lobe.py says.
+
+Spheres shaded by the SBRDF bound to a probe folder holding the four (synthetic) maps, different
+sunless maps and a bake record with a sun: the render against the numpy reference
+(tests/sbrdf_reference.py with the sun), pixel by pixel. Then the same folder with the scene's Sun
+Highlight off (and with a record without a sun) reads the four maps and no sun."""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+import sbrdf_reference as ref
+import sbrdf_scene as sc
+from platelight.addon.exr_io import write_exr
+from platelight.addon.ibl import lights, sun_lobe
+from platelight.addon.material.params import SBRDFParams
+
+BASE = dict(diffuse_albedo=(0.0, 0.0, 0.0), specular_albedo=(0.9, 0.8, 0.7), glossiness=0.6,
+            fresnel_falloff=1e-4, emission_strength=0.0)
+CASES = {
+    "glossy": BASE,
+    "rough": dict(BASE, glossiness=0.2, diffuse_albedo=(0.3, 0.4, 0.5), specular_albedo=(0.2, 0.2, 0.2)),
+    "near_mirror": dict(BASE, glossiness=0.85),
+    "mirror": dict(BASE, glossiness=1.0),
+    "brushed": dict(BASE, anisotropy=0.8, tangent_rotation=0.5, fresnel_falloff=0.1),
+    "retro": dict(BASE, glossiness=0.7, retro_reflection=0.6),
+    "fresnel": dict(BASE, glossiness=0.4, fresnel_falloff=0.3, diffuse_albedo=(0.3, 0.2, 0.3),
+                    specular_albedo=(0.05, 0.05, 0.05)),
+    "transparent": dict(BASE, glossiness=0.9, fresnel_falloff=1 / 6, alpha=0.3, ior=1.45,
+                        diffuse_albedo=(0.9, 1.0, 0.8), specular_albedo=(0.04, 0.04, 0.04)),
+}
+SUN = lights.DirectionalLight(np.array([0.5, -0.6, 0.7]) / np.linalg.norm([0.5, -0.6, 0.7]),
+                              np.array([5.0, 4.0, 3.0]), 0.02, True)
+
+
+def _render(bpy, folder, sun_highlight):
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    bpy.context.scene.platelight.probe_sun_lobe = sun_highlight
+    return sc.render_cases(bpy, folder, CASES)
+
+
+@pytest.fixture(scope="module")
+def rendered(bpy_module, tmp_path_factory):
+    bpy = bpy_module
+    folder = tmp_path_factory.mktemp("sun_lobe") / "probe"
+    maps = sc.synthetic_maps()
+    sunless = {k: v for k, v in sc.synthetic_maps(seed=1).items() if k in sun_lobe.SUNLESS_MAPS}
+    sc.write_maps(folder, maps)
+    for name, image in sunless.items():
+        write_exr(folder / sun_lobe.sunless_filename(name), image)
+    (folder / "bake.json").write_text(json.dumps({"hash": "test", "maps": list(maps),
+                                                  sun_lobe.RECORD_KEY: sun_lobe.to_record(SUN)}))
+    renders = {"on": _render(bpy, folder, True), "off": _render(bpy, folder, False)}
+    # a record without a sun (a bake that found none): the four maps, whatever the setting says
+    (folder / "bake.json").write_text(json.dumps({"hash": "test", "maps": list(maps)}))
+    renders["no sun"] = _render(bpy, folder, True)
+    return dict(renders, maps=maps, sunless=sunless)
+
+
+def _worst(rendered, key, case, sun, sunless):
+    got, P, mask = sc.case_tile(rendered[key], list(CASES).index(case))
+    params = dataclasses.asdict(dataclasses.replace(SBRDFParams(), **CASES[case]))
+    want, dirs = ref.sbrdf(P, sc.VIEW, rendered["maps"], params, sun=sun, sunless=sunless)
+    for d in dirs:
+        mask &= ~ref.near_pole(d, rendered["maps"])
+    assert mask.sum() > 200, "too few pixels compared"
+    return (np.abs(got - want) / np.maximum(np.abs(want), 1e-2))[mask].max()
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_sun_through_the_lobe_matches_numpy_reference(rendered, case):
+    worst = _worst(rendered, "on", case, SUN, rendered["sunless"])
+    # 2e-3: Blender evaluates Float Curves (tilt, roughness, albedo) from 256-entry tables
+    assert worst < 2e-3, f"{case}: worst relative error {worst:.2e}"
+    if case != "mirror":
+        # the sun shows: somewhere the highlight is most of the pixel
+        without = _worst(rendered, "on", case, None, rendered["sunless"])
+        assert without > 0.2, f"{case}: the sun's highlight is missing from the render ({without:.2f})"
+
+
+@pytest.mark.parametrize("key", ["off", "no sun"])
+@pytest.mark.parametrize("case", ["glossy", "brushed", "rough"])
+def test_without_the_sun_the_maps_are_read(rendered, key, case):
+    worst = _worst(rendered, key, case, None, None)
+    assert worst < 2e-3, f"{key}, {case}: worst relative error {worst:.2e}"

@@ -1,0 +1,100 @@
+"""The sun shaded through the lobe (addon/ibl/sun_lobe.py): its albedo table, its highlight against
+a brute-force GGX integral of a sky with a small sun, and the bake's sunless maps and record."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import reference
+from platelight.addon.exr_io import read_exr
+from platelight.addon.ibl import lights, sun_lobe
+from platelight.addon.ibl.maps import MapSettings, compute_maps
+
+
+def test_albedo_table_is_the_brute_force_albedo():
+    for roughness, row in zip(sun_lobe.ALBEDO_ROUGHNESS, sun_lobe.ALBEDO):
+        got = [sun_lobe.directional_albedo(roughness, mu) for mu in sun_lobe.ALBEDO_MU]
+        assert np.allclose(got, row, atol=2e-4), (roughness, np.round(got, 4))
+    # white GGX loses energy only at grazing views and high roughness (a known shape)
+    assert sun_lobe.albedo(0.3, 1.0) > 0.98 and sun_lobe.albedo(1.0, 1.0) < 0.35
+
+
+def test_albedo_interpolates_between_rows():
+    mid = sun_lobe.albedo(0.375, 0.5)
+    assert np.isclose(mid, (sun_lobe.albedo(0.3, 0.5) + sun_lobe.albedo(0.45, 0.5)) / 2)
+    assert np.isclose(sun_lobe.albedo(5.0, 0.5), sun_lobe.albedo(1.0, 0.5))
+
+
+def _sky_with_small_sun(height=256):
+    """A dim sky and a 2x2-texel sun 40 degrees up; returns (env, the sun as a light)."""
+    env = np.full((height, 2 * height, 3), 0.05, np.float32)
+    row, col = int(height * (0.5 - 40 / 180)), int(height * 0.8)
+    env[row:row + 2, col:col + 2] = (4000.0, 3000.0, 2000.0)
+    light, sunless = sun_lobe.split(env)
+    return env, light, sunless
+
+
+@pytest.mark.parametrize("roughness, amount", [(0.45, 0.0), (0.6, 0.0), (0.45, 0.8)])
+def test_highlight_is_the_brute_force_ggx_of_the_sun(roughness, amount):
+    env, light, sunless = _sky_with_small_sun()
+    assert light is not None
+    normals = reference.sphere_facing_x(20)
+    tangents = reference.tangents_about_z(normals)
+    view = np.array([1.0, 0.0, 0.0])
+    aspect = float(np.sqrt(1 - 0.9 * amount))
+    a_t, a_b = roughness ** 2 / aspect, roughness ** 2 * aspect
+    want = reference.anisotropic_ggx(env, a_t, a_b, normals, tangents, view, 256) \
+        - reference.anisotropic_ggx(sunless.astype(np.float32), a_t, a_b, normals, tangents, view, 256)
+    got = sun_lobe.highlight(normals, tangents, np.broadcast_to(view, normals.shape), a_t, a_b, light)
+    lit = want[:, 0] > 0.05 * want[:, 0].max()
+    assert lit.sum() > 20
+    error = np.abs(got - want)[lit] / want[lit]
+    assert np.median(error) < 0.03 and np.sqrt(np.mean((got - want) ** 2)) < 0.03 * want.max(), \
+        (np.median(error), error.max())
+
+
+def test_highlight_is_zero_below_the_horizon_and_finite_for_a_mirror():
+    light = lights.DirectionalLight(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 1.0]), 0.0, True)
+    n = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
+    t = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    v = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
+    out = sun_lobe.highlight(n, t, v, 0.0, 0.0, light)
+    assert np.all(out[0] == 0) and np.all(np.isfinite(out[1])) and out[1, 0] > 1e4
+
+
+def test_sun_share_leaves_the_mirror_map_its_sun():
+    assert sun_lobe.sun_share(1.0) == 0.0 and sun_lobe.sun_share(2 / 3) == 1.0 and sun_lobe.sun_share(0.0) == 1.0
+    assert np.isclose(sun_lobe.sun_share(5 / 6), 0.5)
+
+
+def test_split_keeps_the_energy_and_a_sky_without_sun_is_left_alone():
+    env, light, sunless = _sky_with_small_sun(64)
+    _, omega = reference.texel_grid(64)
+    total = (env.reshape(-1, 3) * omega[:, None]).sum(0)
+    assert np.allclose(light.rgb + (sunless.reshape(-1, 3) * omega[:, None]).sum(0), total, rtol=1e-6)
+    flat = np.full((32, 64, 3), 0.7, np.float32)
+    none, same = sun_lobe.split(flat)
+    assert none is None and np.allclose(same, flat)
+
+
+def test_bake_writes_the_sunless_maps_and_the_record_and_cleans_up(tmp_path):
+    env, light, sunless = _sky_with_small_sun(64)
+    settings = MapSettings(heights={"diffuse": 16, "glossy1": 16, "glossy2": 32, "specular": 64})
+    entry = sun_lobe.bake_sunless(str(tmp_path), env, settings, ("diffuse", "glossy2", "specular"), frame=3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["diffuse_sunless_0003.exr", "glossy2_sunless_0003.exr"]
+    want = compute_maps(sunless.astype(np.float32), settings, which=["glossy2"]).maps["glossy2"]
+    assert np.allclose(read_exr(tmp_path / "glossy2_sunless_0003.exr"), want, rtol=1e-5, atol=1e-6)
+    back = sun_lobe.from_record(entry)
+    assert np.allclose(back.direction, light.direction) and np.allclose(back.rgb, light.rgb)
+    # the next bake of that frame finds no sun: nothing sunless is left to be read with a sun
+    assert sun_lobe.bake_sunless(str(tmp_path), np.full((64, 128, 3), 0.5, np.float32), settings,
+                                 ("diffuse", "glossy2"), frame=3) == {}
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("entry", [None, {}, {"direction": [0, 0, 1]}, {"direction": [0, 0, 0], "rgb": [1, 1, 1], "angle": 0},
+                                   {"direction": [0, 0, 1], "rgb": [float("nan"), 1, 1], "angle": 0},
+                                   {"direction": "up", "rgb": [1, 1, 1], "angle": 0},
+                                   {"direction": [0, 0, 1], "rgb": [0, 0, 0], "angle": 0}])
+def test_a_bad_record_means_no_sun(entry):
+    assert sun_lobe.from_record({sun_lobe.RECORD_KEY: entry}) is None
