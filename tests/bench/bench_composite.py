@@ -223,6 +223,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False, route="sbrdf"):
 
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
     scene.platelight.probe_owner_shadows = not paper
+    scene.platelight.probe_sun_lobe = not paper        # the paper's maps hold their sun
     scene.platelight.glossy_lobes = "ggx" if route == "sbrdf_ggx" else "phong"
     sphere.platelight.enabled = True
     bpy.context.view_layer.objects.active = sphere
