@@ -41,8 +41,8 @@ SUN_NODES = (names.SUN_DIRECTION_NODE, names.SUN_COLOR_NODE, names.SUN_ANGLE_NOD
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
               names.GRID_POINTS_NODE, names.GRID_HEIGHT_NODE)
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
-# What the specular look-ups read: the sunless maps (the maps themselves without a sun) and the
-# mirror map, which keeps the sun's disc.
+# What the specular look-ups read: the sunless glossy maps (the maps themselves without a sun),
+# the diffuse map and the mirror map, which keep the sun.
 SUNLESS_NAMES = {sun_lobe.sunless_name(name): name for name in sun_lobe.SUNLESS_MAPS}
 SPECULAR_MAPS = tuple(sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n for n in MAP_NAMES)
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
@@ -478,8 +478,9 @@ def _irradiance_grid(g, direction):
 
 
 def _sun_highlight(g, inp):
-    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V) A) of the group's sun (its irradiance 0
-    when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas."""
+    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V)) (1 + F (1 - A) / A) of the group's sun
+    (its irradiance 0 when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas,
+    F the Specular Weight."""
     direction = _named_vector(g, names.SUN_DIRECTION_NODE)
     color = _named_vector(g, names.SUN_COLOR_NODE)
     angle = _named_value(g, names.SUN_ANGLE_NODE, 0.0)
@@ -512,10 +513,13 @@ def _sun_highlight(g, inp):
     # sun_lobe.albedo_roughness: the RMS alpha's roughness
     roughness = g.math("POWER", g.math("MULTIPLY", g.math("ADD", squared(split.outputs[0]), squared(split.outputs[1])),
                                        0.5), 0.25)
-    denominator = g.math("MULTIPLY", g.math("MULTIPLY", masking, g.math("MAXIMUM", mu_v, 1e-4)),
-                         g.math("MULTIPLY", 4.0, _lobe_albedo(g, roughness, mu_v)))
+    denominator = g.math("MULTIPLY", g.math("MULTIPLY", masking, g.math("MAXIMUM", mu_v, 1e-4)), 4.0)
     above = g.math("MULTIPLY", g.math("GREATER_THAN", mu_v, 0.0), g.math("GREATER_THAN", mu_l, 0.0))
-    return g.vmath("SCALE", color, scale=g.math("MULTIPLY", above, g.math("DIVIDE", d, denominator)))
+    # the energy single scattering loses, back in proportion to the specular weight (Fresnel)
+    lost = g.math("SUBTRACT", g.math("DIVIDE", 1.0, _lobe_albedo(g, roughness, mu_v)), 1.0)
+    regained = g.vmath("ADD", (1.0, 1.0, 1.0), g.vmath("SCALE", inp["Specular Weight"], scale=lost))
+    return g.vmath("MULTIPLY", g.vmath("SCALE", color, scale=g.math("MULTIPLY", above, g.math("DIVIDE", d, denominator))),
+                   regained)
 
 
 def _lobe_albedo(g, roughness, mu):
@@ -573,8 +577,11 @@ def _build(tree):
         term = blended(tap, specular_weights, SPECULAR_MAPS)
         streak = term if streak is None else g.vmath("ADD", streak, term)
     streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
-    # The sun the sunless maps lack, through the lobe, for every map's share but the mirror's.
-    sun_share = g.math("SUBTRACT", 1.0, specular_weights[MAP_NAMES.index("specular")])
+    # The sun the sunless maps lack, through the lobe, for their share (sun_lobe.sun_share).
+    sun_share = None
+    for name in sun_lobe.SUNLESS_MAPS:
+        weight = specular_weights[MAP_NAMES.index(name)]
+        sun_share = weight if sun_share is None else g.math("ADD", sun_share, weight)
     streak = g.vmath("ADD", streak, g.vmath("SCALE", _sun_highlight(g, inp), scale=sun_share))
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], streak)
     refraction_weights = tent_weights(g, inp["Map Glossiness"])

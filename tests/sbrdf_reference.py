@@ -115,9 +115,9 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None):
         aspect = anisotropy.aspect(amount)
         peak_unit = _norm(peak)
         lobe_view = 2 * _dot(N, peak_unit) * N - peak_unit
-        share = 1.0 - tent_weights(n2[..., 0])[3]
+        share = tent_weights(n2[..., 0])[1] + tent_weights(n2[..., 0])[2]   # glossy1 and glossy2
         specular = specular + share[..., None] * sun_lobe.highlight(N, Tr, lobe_view, alpha / aspect,
-                                                                    alpha * aspect, sun)
+                                                                    alpha * aspect, sun, rho_s * g2)
     lr = lr + rho_s * g2 * specular
     refr = np.zeros_like(lr)
     dirs = [spec_dir, N, *taps]

@@ -6,17 +6,20 @@ smooth sky that is close to GGX, but a small, very bright sun makes the lobe's s
 picture: GGX's long tail gathers it from far off, a brushed lobe smears it into a streak, a
 grazing view stretches it. So the bake splits the probe (lights.split_sun: the sun's blob filled
 with the sky around it, energy kept) and writes, beside the four contract maps (unchanged), the
-diffuse, glossy1 and glossy2 maps of the probe *without* its sun (``<map>_sunless.exr``) and the
-sun in the bake record. The shader's specular look-ups read those sunless maps with the mirror
-map (which keeps the sun: a mirror shows its disc), and add the sun through the lobe:
+glossy1 and glossy2 maps of the probe *without* its sun (``<map>_sunless.exr``) and the sun in
+the bake record. The shader's specular look-ups read those sunless maps with the diffuse and
+mirror maps (which keep the sun), and add the sun through the lobe for the glossy maps' share:
 
-    S = sum_k w_k map_k(d) + (1 - w_specular) E D(h) G2(V, L) / (4 (N.V) A(N.V, r))
+    S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2) E D(h) G2(V, L) / (4 (N.V)) (1 + F (1 - A) / A)
 
 h the half vector of the sun direction L and the lobe's view V, D and G2 Principled's anisotropic
 GGX with Smith's height-correlated masking (alphas r^2 / aspect along the rotated tangent,
 r^2 aspect across it; addon/ibl/anisotropy.py), E the sun's irradiance (rgb, lights.py's units),
-A the lobe's directional albedo (so the term integrates to 1 as a map's lobe does). The alphas are
-widened by the sun's own size, so a narrow lobe shows a disc, not a point.
+A the lobe's directional albedo and F the specular weight: the energy single scattering loses comes
+back in proportion to Fresnel, as in Cycles' multiscatter GGX, so a metal's lobe integrates to 1
+as a map's lobe does and a rough dielectric's highlight stays dim (at roughness 1, dividing by A
+alone made the diffuse sphere's highlight 3x too bright: -0.9 dB). The alphas are widened by the
+sun's own size, so a narrow lobe shows a disc, not a point.
 
 On a bare metal sphere under the bundled city HDRI (brute-force GGX of the whole HDRI as the
 truth; tests/bench/bench_sun_lobe.py, docs/bench/sun_lobe.md) this is the largest single gain of
@@ -35,8 +38,10 @@ from .maps import MAP_NAMES, MapSettings, compute_maps, map_filename, tent_weigh
 
 VERSION = 1                 # in the probe's hash: a bake before the sunless maps is baked again
 
-# The maps that lose the sun (the mirror map keeps it) and where they are written.
-SUNLESS_MAPS = ("diffuse", "glossy1", "glossy2")
+# The maps that lose the sun and where they are written. The mirror map keeps it (a mirror shows
+# its disc); so does the diffuse map, which also stands for the roughest specular lobes: through
+# GGX at roughness 1 the diffuse sphere's object PSNR fell from 38.5 to 38.1 dB (docs/decisions.md).
+SUNLESS_MAPS = ("glossy1", "glossy2")
 SUNLESS_SUFFIX = "_sunless"
 RECORD_KEY = "sun"          # in the bake record: {"direction", "rgb", "angle"}
 
@@ -177,8 +182,9 @@ def albedo_roughness(alpha_t, alpha_b):
 
 
 def sun_share(glossiness) -> np.ndarray:
-    """The part of the lobe the analytic sun stands for: every map's but the mirror map's."""
-    return 1.0 - tent_weights(glossiness)[MAP_NAMES.index("specular")]
+    """The part of the lobe the analytic sun stands for: the sunless maps' weights."""
+    weights = tent_weights(glossiness)
+    return sum(weights[MAP_NAMES.index(name)] for name in SUNLESS_MAPS)
 
 
 def widened_alpha(alpha, angle):
@@ -186,10 +192,15 @@ def widened_alpha(alpha, angle):
                    + SIZE_WIDENING * float(angle) ** 2)
 
 
-def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.DirectionalLight) -> np.ndarray:
-    """E D(h) G2 / (4 (N.V) A) per point (arrays (..., 3); alphas per point or scalars): the sun
-    through the unit lobe, as the probe group computes it. Zero where the sun or the view is
-    below the surface."""
+def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.DirectionalLight,
+              reflectance=1.0) -> np.ndarray:
+    """E D(h) G2 / (4 (N.V)) (1 + F (1 - A) / A) per point (arrays (..., 3); alphas per point or
+    scalars; F = ``reflectance``, the specular weight the term is multiplied by, rgb or a number):
+    the sun through the lobe, as the probe group computes it. The last factor is the energy the
+    single-scattering lobe loses, given back in proportion to Fresnel as Cycles' multiscatter GGX
+    does (Turquin 2019): 1 / A for a white metal (the unit lobe the maps hold), about 1 for a
+    dielectric, whose rough highlight really is dimmer. Zero where the sun or the view is below
+    the surface."""
     normal, tangent, view = (np.asarray(x, dtype=np.float64) for x in (normal, tangent, view))
     bitangent = np.cross(normal, tangent)
     a_t = widened_alpha(alpha_t, light.angle)
@@ -209,7 +220,7 @@ def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.Directional
         return (np.sqrt(1.0 + projected / np.maximum(dot(w, normal) ** 2, 1e-12)) - 1.0) / 2.0
     mu_v, mu_l = dot(view, normal), dot(sun, normal)
     roughness = albedo_roughness(alpha_t, alpha_b)
-    value = d / (1.0 + smith(view) + smith(sun)) / (4.0 * np.maximum(mu_v, 1e-4)
-                                                    * albedo(roughness, np.clip(mu_v, 0.0, 1.0)))
+    value = d / (1.0 + smith(view) + smith(sun)) / (4.0 * np.maximum(mu_v, 1e-4))
     value = np.where((mu_v > 0) & (mu_l > 0), value, 0.0)
-    return value[..., None] * light.rgb
+    lost = 1.0 / albedo(roughness, np.clip(mu_v, 0.0, 1.0)) - 1.0
+    return value[..., None] * light.rgb * (1.0 + np.asarray(reflectance) * lost[..., None])

@@ -616,3 +616,52 @@ def test_sky_of_an_image_world_is_the_image_itself_not_sampled(bpy_clean, tmp_pa
     distance = read_exr(maps_folder(tmp_path, "Owner") / "distance.exr")[..., 0]
     assert distance[: distance.shape[0] // 3].min() >= FAR * 0.99
     assert np.median(distance[-2:]) == pytest.approx(1.0, rel=0.05)
+
+
+def test_the_probes_sun_is_baked_apart_and_shaded_through_the_lobe(bpy_clean, tmp_path):
+    """A glossy object's bake under a world with a small sun writes the sunless maps and the sun
+    (its direction, all its energy) in the record; the probe group shines that sun through the
+    lobe and reads the sunless maps, and the scene's Sun Highlight setting switches both back."""
+    import json
+
+    from bl_ext.dev.platelight.node_groups import probe_maps, sbrdf_material
+    from platelight.addon import names
+    from platelight.addon.exr_io import read_exr, write_exr
+    from platelight.addon.ibl.equirect import texel_directions, texel_solid_angles
+    from platelight.addon.material.params import SBRDFParams
+
+    bpy = bpy_clean
+    env = np.full((64, 128, 3), 0.2, np.float32)
+    env[20:22, 90:92] = (20000.0, 15000.0, 9000.0)       # a sun 2 texels wide
+    write_exr(tmp_path / "sun.exr", env)
+    new_scene(bpy, tmp_path, env_exr=tmp_path / "sun.exr", height=32, samples=2)
+    ball = add_sphere(bpy, "Ball", (0, 0, 0), radius=0.3)
+    add_plane(bpy, "Floor", (0, 0, -1.0), size=30, color=(0.5, 0.5, 0.5), phantom=True)
+    sbrdf_material.apply_sbrdf_material(ball, params=SBRDFParams(specular_albedo=(0.9, 0.9, 0.9), glossiness=0.5))
+    bake(bpy, all_objects=True, cull=False)
+
+    folder = maps_folder(tmp_path, "Ball")
+    record = json.loads((folder / "bake.json").read_text())
+    sun = record["sun"]
+    want = texel_directions(64, 128)[20:22, 90:92].reshape(-1, 3).mean(axis=0)
+    assert angle_deg(np.array(sun["direction"]), want) < 1.0
+    energy = (env[20:22, 90:92] - 0.2).reshape(-1, 3).T @ texel_solid_angles(64, 128)[20:22, 90:92].reshape(-1)
+    np.testing.assert_allclose(sun["rgb"], energy, rtol=0.02)
+    glossy2, sunless = read_map(tmp_path, "Ball", "glossy2"), read_exr(folder / "glossy2_sunless.exr")
+    assert glossy2.max() > 20 * sunless.max() and sunless.min() > 0.1   # the sky stays
+
+    group = probe_maps.find_probe_group(ball.platelight.probe_dir)
+
+    def bound():
+        rgb = [group.nodes[names.SUN_COLOR_NODE].inputs[a].default_value for a in "XYZ"]
+        files = {n["platelight_map"]: n.image.filepath.rsplit("/", 1)[-1] for n in group.nodes
+                 if n.get("platelight_map", "").endswith("_sunless") and n.image}
+        return rgb, files
+    rgb, files = bound()
+    np.testing.assert_allclose(rgb, sun["rgb"], rtol=1e-6)
+    assert files["glossy2_sunless"] == "glossy2_sunless.exr"
+    bpy.context.scene.platelight.probe_sun_lobe = False
+    rgb, files = bound()
+    assert rgb == [0.0, 0.0, 0.0] and files["glossy2_sunless"] == "glossy2.exr"
+    bpy.context.scene.platelight.probe_sun_lobe = True
+    assert bound()[1]["glossy2_sunless"] == "glossy2_sunless.exr"
