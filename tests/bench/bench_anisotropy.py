@@ -44,6 +44,15 @@ def along_streak(found, normals, tangents, view, glossiness, amount):
     return sum(maps.blended_lookup(found, narrow, d) for d in taps) / len(taps)
 
 
+def brushed_ggx(env, roughness, amount, normals, view):
+    """(tangents, truth) of a view's pixels: brute-force Principled GGX of ``env`` at this
+    roughness and anisotropy, the tangent circling Z."""
+    aspect = float(anisotropy.aspect(amount))
+    tangents = reference.tangents_about_z(normals)
+    return tangents, reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
+                                               normals, tangents, view, TRUTH_HEIGHT)
+
+
 def main(out_dir: pathlib.Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     views = [sphere_view(a, pixels=PIXELS) for a in VIEW_AZIMUTHS]
@@ -53,13 +62,10 @@ def main(out_dir: pathlib.Path) -> None:
         found = maps.compute_maps(env, maps.MapSettings()).maps
         for roughness, amount in MATERIALS:
             t0 = time.perf_counter()
-            aspect = float(anisotropy.aspect(amount))
             glossiness = roughness_to_glossiness(roughness)
             round_scores, streak_scores = [], []
             for normals, view in views:
-                tangents = reference.tangents_about_z(normals)
-                want = reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
-                                                 normals, tangents, view, TRUTH_HEIGHT)
+                tangents, want = brushed_ggx(env, roughness, amount, normals, view)
                 round_lobe = maps.blended_lookup(found, glossiness, lookups(normals, view, glossiness, True))
                 round_scores.append(psnr(round_lobe, want))
                 streak_scores.append(psnr(along_streak(found, normals, tangents, view, glossiness, amount), want))

@@ -23,9 +23,8 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-import reference  # noqa: E402
 import support  # noqa: E402,F401
-from bench_anisotropy import along_streak  # noqa: E402
+from bench_anisotropy import along_streak, brushed_ggx  # noqa: E402
 from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, psnr, sphere_view  # noqa: E402
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
@@ -33,7 +32,6 @@ from platelight.addon.ibl import anisotropy, maps, sun_lobe  # noqa: E402
 
 MATERIALS = ((0.1, 0.0), (0.2, 0.0), (0.3, 0.0), (0.45, 0.0), (0.6, 0.0), (0.8, 0.0),
              (0.3, 0.8), (0.45, 1.0))               # (roughness, anisotropy)
-TRUTH_HEIGHT = 256
 PIXELS = 28
 
 
@@ -70,12 +68,9 @@ def main(out_dir: pathlib.Path) -> None:
             sunless.update(computed)
         for roughness, amount in MATERIALS:
             t0 = time.perf_counter()
-            aspect = float(anisotropy.aspect(amount))
             before, after = [], []
             for normals, view in views:
-                tangents = reference.tangents_about_z(normals)
-                want = reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
-                                                 normals, tangents, view, TRUTH_HEIGHT)
+                tangents, want = brushed_ggx(env, roughness, amount, normals, view)
                 before.append(psnr(shaded(full, normals, tangents, view, roughness, amount), want))
                 after.append(psnr(shaded(sunless, normals, tangents, view, roughness, amount, sun), want))
             rows.append((name, sun is not None, roughness, amount, float(np.mean(before)), float(np.mean(after))))
