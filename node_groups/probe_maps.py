@@ -215,7 +215,7 @@ def _steady_sun(path, record, sequence):
             if present and not os.path.isfile(os.path.join(path, sun_lobe.sunless_filename(name, frame))):
                 return None
     if sequence:
-        for frame in frames.get(next(iter(frames), ""), []):
+        for frame in sorted({f for numbers in frames.values() for f in numbers}):
             other = sun_lobe.from_record(read_record(path, frame))
             if other is None or not (np.allclose(other.direction, sun.direction, atol=1e-4)
                                      and np.allclose(other.rgb, sun.rgb, rtol=1e-3, atol=1e-6)):

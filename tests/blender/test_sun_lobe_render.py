@@ -86,3 +86,33 @@ def test_sun_through_the_lobe_matches_numpy_reference(rendered, case):
 def test_without_the_sun_the_maps_are_read(rendered, key, case):
     worst = _worst(rendered, key, case, None, None)
     assert worst < 2e-3, f"{key}, {case}: worst relative error {worst:.2e}"
+
+
+def test_a_sequence_binds_its_sun_only_when_every_frame_has_the_same(bpy_module, tmp_path):
+    """A frame-range bake: one sun for the group when every frame's record has it; a frame whose
+    probe lost it (an object moved into shadow) makes the whole sequence read its four maps."""
+    from bl_ext.dev.platelight.node_groups import probe_maps
+    from platelight.addon import names
+
+    bpy = bpy_module
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    maps = sc.synthetic_maps()
+    for frame in (1, 2):
+        sc.write_maps(tmp_path, maps, frame=frame)
+        for name in sun_lobe.SUNLESS_MAPS:
+            write_exr(tmp_path / sun_lobe.sunless_filename(name, frame), maps[name] * 0.5)
+        (tmp_path / f"bake_{frame:04d}.json").write_text(json.dumps(
+            {"hash": "x", "maps": list(maps), sun_lobe.RECORD_KEY: sun_lobe.to_record(SUN)}))
+    group = probe_maps.ensure_probe_group(str(tmp_path))
+
+    def bound():
+        rgb = [group.nodes[names.SUN_COLOR_NODE].inputs[a].default_value for a in "XYZ"]
+        image = next(n.image for n in group.nodes if n.get("platelight_map") == "glossy2_sunless")
+        return rgb, image.filepath.rsplit("/", 1)[-1]
+    rgb, image = bound()
+    np.testing.assert_allclose(rgb, SUN.rgb, rtol=1e-6)
+    assert image == "glossy2_sunless_0001.exr"
+    (tmp_path / "bake_0002.json").write_text(json.dumps({"hash": "x", "maps": list(maps)}))
+    probe_maps.bind_images(group)
+    rgb, image = bound()
+    assert rgb == [0.0, 0.0, 0.0] and image == "glossy2_0001.exr"
