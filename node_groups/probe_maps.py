@@ -41,10 +41,11 @@ SUN_NODES = (names.SUN_DIRECTION_NODE, names.SUN_COLOR_NODE, names.SUN_ANGLE_NOD
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
               names.GRID_POINTS_NODE, names.GRID_HEIGHT_NODE)
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
-# What the specular look-ups read: the sunless glossy maps (the maps themselves without a sun),
-# the diffuse map and the mirror map, which keep the sun.
+# What the specular look-ups read besides the diffuse map (split by the lobe's reflectance): the
+# sunless glossy maps (the maps themselves without a sun) and the mirror map, which keeps the sun.
 SUNLESS_NAMES = {sun_lobe.sunless_name(name): name for name in sun_lobe.SUNLESS_MAPS}
-SPECULAR_MAPS = tuple(sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n for n in MAP_NAMES)
+SPECULAR_MAPS = tuple(None if n == "diffuse" else sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n
+                      for n in MAP_NAMES)
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
            ("Refraction Term", "NodeSocketColor"))
@@ -555,6 +556,8 @@ def _build(tree):
     def blended(direction, weights, map_names=MAP_NAMES):
         total = None
         for name, weight in zip(map_names, weights):
+            if name is None:
+                continue
             term = g.vmath("SCALE", env(name, direction), scale=weight)
             total = term if total is None else g.vmath("ADD", total, term)
         return total
@@ -577,11 +580,18 @@ def _build(tree):
         term = blended(tap, specular_weights, SPECULAR_MAPS)
         streak = term if streak is None else g.vmath("ADD", streak, term)
     streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
+    # The diffuse map, read once (a streak is far narrower than its lobe), with its sun and
+    # without it in proportion to the lobe's reflectance.
+    # sun_lobe.sunless_diffuse_part: the lobe's mean reflectance, clamped to [0, 1]
+    reflectance = g.vmath("DOT_PRODUCT", inp["Specular Weight"], (1 / 3, 1 / 3, 1 / 3))
+    sunless_part = g.math("MINIMUM", g.math("MAXIMUM", reflectance, 0.0), 1.0)
+    rough_map = g.mix("VECTOR", sunless_part, env("diffuse", specular_direction),
+                      env(sun_lobe.sunless_name("diffuse"), specular_direction))
+    streak = g.vmath("ADD", streak, g.vmath("SCALE", rough_map, scale=specular_weights[MAP_NAMES.index("diffuse")]))
     # The sun the sunless maps lack, through the lobe, for their share (sun_lobe.sun_share).
-    sun_share = None
-    for name in sun_lobe.SUNLESS_MAPS:
-        weight = specular_weights[MAP_NAMES.index(name)]
-        sun_share = weight if sun_share is None else g.math("ADD", sun_share, weight)
+    sun_share = g.math("MULTIPLY_ADD", specular_weights[MAP_NAMES.index("diffuse")], sunless_part,
+                       g.math("ADD", specular_weights[MAP_NAMES.index("glossy1")],
+                              specular_weights[MAP_NAMES.index("glossy2")]))
     streak = g.vmath("ADD", streak, g.vmath("SCALE", _sun_highlight(g, inp), scale=sun_share))
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], streak)
     refraction_weights = tent_weights(g, inp["Map Glossiness"])

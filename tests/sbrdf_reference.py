@@ -107,15 +107,23 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None):
     # an anisotropic lobe: the maps read along the streak, narrowing with the Fresnel glossiness
     slope = anisotropy.streak_slope(p["glossiness"], amount) * (1 - f[..., 0])
     taps = anisotropy.tap_directions(spec_dir, anisotropy.spread(N, Tr, R, slope))
-    specular_maps = dict(maps, **(sunless or {}))
-    specular = sum(blend(specular_maps, d, n2) for d in taps) / len(taps)
+    sunless = sunless or {}
+    specular_maps = dict(maps, **{k: v for k, v in sunless.items() if k != "diffuse"})
+    # the diffuse map read once, along the streak's centre (the probe group does the same)
+    w_d = np.maximum(0.0, 1.0 - np.abs(np.clip(n2, 0, 1) * 3.0))
+    specular = sum(blend(specular_maps, d, n2) - w_d * bilinear(maps["diffuse"], d) for d in taps) / len(taps) \
+        + w_d * bilinear(maps["diffuse"], spec_dir)
+    if "diffuse" in sunless:
+        # the diffuse map read sunless in proportion to the lobe's mean reflectance
+        part = np.clip(np.mean(rho_s * g2, axis=-1, keepdims=True), 0.0, 1.0)
+        specular = specular + w_d * part * (bilinear(sunless["diffuse"], spec_dir) - bilinear(maps["diffuse"], spec_dir))
     if sun is not None:
         # GGX of the Fresnel-sharpened glossiness, seen from the view whose mirror is the peak
         alpha = glossiness_to_roughness(p["glossiness"] + (1 - p["glossiness"]) * f[..., 0]) ** 2
         aspect = anisotropy.aspect(amount)
         peak_unit = _norm(peak)
         lobe_view = 2 * _dot(N, peak_unit) * N - peak_unit
-        share = tent_weights(n2[..., 0])[1] + tent_weights(n2[..., 0])[2]   # glossy1 and glossy2
+        share = sun_lobe.sun_share(n2[..., 0], rho_s * g2)
         specular = specular + share[..., None] * sun_lobe.highlight(N, Tr, lobe_view, alpha / aspect,
                                                                     alpha * aspect, sun, rho_s * g2)
     lr = lr + rho_s * g2 * specular

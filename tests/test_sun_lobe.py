@@ -62,10 +62,13 @@ def test_highlight_is_zero_below_the_horizon_and_finite_for_a_mirror():
     assert np.all(out[0] == 0) and np.all(np.isfinite(out[1])) and out[1, 0] > 1e4
 
 
-def test_sun_share_leaves_the_mirror_and_diffuse_maps_their_sun():
+def test_sun_share_leaves_the_mirror_map_its_sun_and_splits_the_diffuse_maps():
     assert sun_lobe.sun_share(1.0) == 0.0 and sun_lobe.sun_share(2 / 3) == 1.0 and sun_lobe.sun_share(0.5) == 1.0
-    assert np.isclose(sun_lobe.sun_share(5 / 6), 0.5) and np.isclose(sun_lobe.sun_share(1 / 6), 0.5)
-    assert sun_lobe.sun_share(0.0) == 0.0          # the diffuse map keeps its sun
+    assert np.isclose(sun_lobe.sun_share(5 / 6), 0.5) and np.isclose(sun_lobe.sun_share(1 / 6, 0.0), 0.5)
+    # the diffuse map loses its sun in proportion to the lobe's reflectance: all of it for a
+    # white metal, little for a dielectric
+    assert sun_lobe.sun_share(0.0) == 1.0 and np.isclose(sun_lobe.sun_share(0.0, (0.04, 0.04, 0.04)), 0.04)
+    assert np.isclose(sun_lobe.sun_share(1 / 6, 0.5), 0.75) and sun_lobe.sun_share(0.0, 3.0) == 1.0
 
 
 def test_split_keeps_the_energy_and_a_sky_without_sun_is_left_alone():
@@ -82,7 +85,7 @@ def test_bake_writes_the_sunless_maps_and_the_record_and_cleans_up(tmp_path):
     env, light, sunless = _sky_with_small_sun(64)
     settings = MapSettings(heights={"diffuse": 16, "glossy1": 16, "glossy2": 32, "specular": 64})
     entry = sun_lobe.bake_sunless(str(tmp_path), env, settings, ("diffuse", "glossy2", "specular"), frame=3)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["glossy2_sunless_0003.exr"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["diffuse_sunless_0003.exr", "glossy2_sunless_0003.exr"]
     want = compute_maps(sunless.astype(np.float32), settings, which=["glossy2"]).maps["glossy2"]
     assert np.allclose(read_exr(tmp_path / "glossy2_sunless_0003.exr"), want, rtol=1e-5, atol=1e-6)
     back = sun_lobe.from_record(entry)

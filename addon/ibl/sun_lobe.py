@@ -6,11 +6,12 @@ smooth sky that is close to GGX, but a small, very bright sun makes the lobe's s
 picture: GGX's long tail gathers it from far off, a brushed lobe smears it into a streak, a
 grazing view stretches it. So the bake splits the probe (lights.split_sun: the sun's blob filled
 with the sky around it, energy kept) and writes, beside the four contract maps (unchanged), the
-glossy1 and glossy2 maps of the probe *without* its sun (``<map>_sunless.exr``) and the sun in
-the bake record. The shader's specular look-ups read those sunless maps with the diffuse and
-mirror maps (which keep the sun), and add the sun through the lobe for the glossy maps' share:
+diffuse, glossy1 and glossy2 maps of the probe *without* its sun (``<map>_sunless.exr``) and the
+sun in the bake record. The shader's specular look-ups read the sunless glossy maps, the mirror
+map (which keeps the sun) and the diffuse map sunless in proportion to the lobe's reflectance F,
+and add the sun through the lobe for that share:
 
-    S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2) E D(h) G2(V, L) / (4 (N.V)) (1 + F (1 - A) / A)
+    S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2 + F w_diffuse) E D(h) G2(V, L) / (4 (N.V)) (1 + F (1 - A) / A)
 
 h the half vector of the sun direction L and the lobe's view V, D and G2 Principled's anisotropic
 GGX with Smith's height-correlated masking (alphas r^2 / aspect along the rotated tangent,
@@ -38,10 +39,11 @@ from .maps import MAP_NAMES, MapSettings, compute_maps, map_filename, tent_weigh
 
 VERSION = 1                 # in the probe's hash: a bake before the sunless maps is baked again
 
-# The maps that lose the sun and where they are written. The mirror map keeps it (a mirror shows
-# its disc); so does the diffuse map, which also stands for the roughest specular lobes: through
-# GGX at roughness 1 the diffuse sphere's object PSNR fell from 38.5 to 38.1 dB (docs/decisions.md).
-SUNLESS_MAPS = ("glossy1", "glossy2")
+# The maps that lose the sun and where they are written; the mirror map keeps it (a mirror shows
+# its disc). The diffuse map read by a specular lobe loses it in proportion to the lobe's
+# reflectance (see sun_share): a metal's rough lobe gains most from the exact sun, a rough
+# dielectric's highlight read worse through GGX than from the diffuse map (docs/decisions.md).
+SUNLESS_MAPS = ("diffuse", "glossy1", "glossy2")
 SUNLESS_SUFFIX = "_sunless"
 RECORD_KEY = "sun"          # in the bake record: {"direction", "rgb", "angle"}
 
@@ -181,10 +183,19 @@ def albedo_roughness(alpha_t, alpha_b):
     return (0.5 * (np.asarray(alpha_t) ** 2 + np.asarray(alpha_b) ** 2)) ** 0.25
 
 
-def sun_share(glossiness) -> np.ndarray:
-    """The part of the lobe the analytic sun stands for: the sunless maps' weights."""
+def sunless_diffuse_part(reflectance) -> np.ndarray:
+    """How much of the diffuse map a specular lobe reads sunless: its mean reflectance F in [0, 1]
+    (the rest reads the diffuse map with its sun)."""
+    return np.clip(np.mean(np.asarray(reflectance, dtype=np.float64), axis=-1), 0.0, 1.0) \
+        if np.ndim(reflectance) else np.clip(float(reflectance), 0.0, 1.0)
+
+
+def sun_share(glossiness, reflectance=1.0) -> np.ndarray:
+    """The part of the lobe the analytic sun stands for: the glossy maps' weights and the diffuse
+    map's as far as it is read sunless."""
     weights = tent_weights(glossiness)
-    return sum(weights[MAP_NAMES.index(name)] for name in SUNLESS_MAPS)
+    return (weights[MAP_NAMES.index("glossy1")] + weights[MAP_NAMES.index("glossy2")]
+            + weights[MAP_NAMES.index("diffuse")] * sunless_diffuse_part(reflectance))
 
 
 def widened_alpha(alpha, angle):

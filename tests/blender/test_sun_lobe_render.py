@@ -23,6 +23,7 @@ BASE = dict(diffuse_albedo=(0.0, 0.0, 0.0), specular_albedo=(0.9, 0.8, 0.7), glo
 CASES = {
     "glossy": BASE,
     "rough": dict(BASE, glossiness=0.2, diffuse_albedo=(0.3, 0.4, 0.5), specular_albedo=(0.2, 0.2, 0.2)),
+    "rough_metal": dict(BASE, glossiness=0.1),
     "near_mirror": dict(BASE, glossiness=0.85),
     "mirror": dict(BASE, glossiness=1.0),
     "brushed": dict(BASE, anisotropy=0.8, tangent_rotation=0.5, fresnel_falloff=0.1),
