@@ -102,3 +102,19 @@ def test_bake_writes_the_sunless_maps_and_the_record_and_cleans_up(tmp_path):
                                    {"direction": [0, 0, 1], "rgb": [0, 0, 0], "angle": 0}])
 def test_a_bad_record_means_no_sun(entry):
     assert sun_lobe.from_record({sun_lobe.RECORD_KEY: entry}) is None
+
+
+def test_a_large_probe_with_bad_pixels_is_split_at_the_split_height(tmp_path):
+    """A world HDRI larger than SPLIT_HEIGHT rows, with NaN and negative pixels: the sun's energy
+    survives the area-correct downsampling, and the sunless maps are finite."""
+    height = 2 * sun_lobe.SPLIT_HEIGHT
+    env = np.full((height, 2 * height, 3), 0.3, np.float32)
+    env[100:104, 700:704] = 50000.0
+    env[5, 5] = np.nan
+    env[6, 6] = -4.0
+    entry = sun_lobe.bake_sunless(str(tmp_path), env, MapSettings(heights={"glossy1": 16, "glossy2": 32}),
+                                  ("glossy1", "glossy2"))
+    _, omega = reference.texel_grid(height)
+    want = (50000.0 - 0.3) * omega.reshape(height, 2 * height)[100:104, 700:704].sum()
+    assert np.allclose(entry["sun"]["rgb"], want, rtol=0.02)
+    assert np.isfinite(read_exr(tmp_path / "glossy2_sunless.exr")).all()

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..exr_io import write_exr
 from . import lights
+from .equirect import downsample_area
 from .maps import MAP_NAMES, MapSettings, compute_maps, map_filename, tent_weights
 
 VERSION = 1                 # in the probe's hash: a bake before the sunless maps is baked again
@@ -62,6 +63,9 @@ ALBEDO = (
     (0.9481, 0.8953, 0.8331, 0.7863, 0.7489, 0.6922, 0.6513, 0.6212, 0.5988, 0.5755, 0.5611, 0.5552),
     (0.9233, 0.8478, 0.7602, 0.6945, 0.6416, 0.5601, 0.4989, 0.4507, 0.4115, 0.3645, 0.3275, 0.3069),
 )
+# A larger probe (a world HDRI) is split at this height: the sunless maps are at most 64 rows, and
+# an 8k HDRI in float64 would take 800 MB.
+SPLIT_HEIGHT = 512
 # Smallest alpha the shader evaluates (D's peak 1 / (pi alpha^2) stays finite in float32).
 MIN_ALPHA = 1e-3
 # A disc of angular diameter theta moves the half vector over a disc of slope radius ~theta / 4,
@@ -93,6 +97,11 @@ def bake_sunless(folder: str, env: np.ndarray, settings: MapSettings, maps, fram
     """Beside a bake's maps: the sunless maps of those of SUNLESS_MAPS it has, and the record's
     entry for the sun ({} without a sun, then no sunless file is left behind)."""
     wanted = [name for name in SUNLESS_MAPS if name in maps]
+    if wanted:
+        env = np.asarray(env)[..., :3]
+        env = np.where(np.isfinite(env), np.maximum(env, 0.0), 0.0)
+        if env.shape[0] > SPLIT_HEIGHT:
+            env = downsample_area(env, SPLIT_HEIGHT)     # energy kept per texel block
     light, sunless = split(env) if wanted else (None, None)
     if light is None:
         remove_sunless(folder, frame)
