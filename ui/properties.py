@@ -144,7 +144,8 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         name="Sun Highlight",
         description="Shade the probe's sun (a small, very bright light the bake finds in it) "
         "through each glossy lobe's own GGX shape, and read the glossy maps without it: exact "
-        "highlights, streaks on brushed metal; off: the paper's maps, the sun blurred into them",
+        "highlights, streaks on brushed metal; off: the paper's maps, the sun blurred into them "
+        "(switching it makes the probes stale: the bake writes the sunless maps only when on)",
         default=True,
         update=lambda self, context: _parallax_changed(self, context),
     )

@@ -319,7 +319,7 @@ class ProbeBake:
             result = compute_maps(env, settings, which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
-            sun = sun_lobe.bake_sunless(folder, env, settings, maps, key_frame)
+            sun = self._bake_sunless(folder, env, settings, maps, key_frame)
             grid = {}
             if wants_distance:
                 points = distance_render.surface_points(ob, self.context.evaluated_depsgraph_get())
@@ -349,6 +349,14 @@ class ProbeBake:
         self._note_bound(ob, status == "baked")
         ob.platelight.probe_hash = digest
         ob.platelight.probe_status = status if self.static else f"{status} (frames {self.frames[0]}-{self.frames[-1]})"
+
+    def _bake_sunless(self, folder, env, settings, maps, key_frame):
+        """The sunless maps and the record's sun (sun_lobe.bake_sunless) when the scene shades the
+        sun through the lobe (Sun Highlight); without it, the paper's files alone."""
+        if self.scene.platelight.probe_sun_lobe:
+            return sun_lobe.bake_sunless(folder, env, settings, maps, key_frame)
+        sun_lobe.remove_sunless(folder, key_frame)
+        return {}
 
     def _write_irradiance_grid(self, env, points, origin, settings, folder, key_frame):
         """The diffuse maps of a grid of points over the object's bounding box, seen through its
@@ -397,7 +405,7 @@ class ProbeBake:
             result = compute_maps(env, settings, which=MAP_NAMES)
             self.warnings.extend(f"world: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=None)
-            sun = sun_lobe.bake_sunless(folder, env, settings, MAP_NAMES, None)
+            sun = self._bake_sunless(folder, env, settings, MAP_NAMES, None)
             layout.write_record(folder, None, digest, MAP_NAMES, source=source or "render", **sun)
             self.world_baked = True
         if scene.platelight.pack_maps:

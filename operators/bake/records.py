@@ -35,7 +35,7 @@ def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_heig
     return content_hash({
         **sized, **indirect, **with_grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
-        "distance": DISTANCE_VERSION, "sun_lobe": SUN_LOBE_VERSION,
+        "distance": DISTANCE_VERSION, **_sun_key(scene),
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
                      settings.probe_fast_world, settings.probe_owner_shadows,
                      settings.probe_distance],
@@ -53,6 +53,11 @@ def _lobes_key(map_settings):
     return {"lobes": lobes} if lobes != MapSettings.lobes else {}
 
 
+def _sun_key(scene):
+    """A bake with the sun apart (Sun Highlight) writes other files; one without hashes as before."""
+    return {"sun_lobe": SUN_LOBE_VERSION} if scene.platelight.probe_sun_lobe else {}
+
+
 def world_maps_hash(scene, world_digest, image, map_settings):
     """The hash of the world's own maps: from ``image`` (a WorldImage: an EXR, its strength and
     rotation) or, when None, from a probe render of the world alone (then the probe settings
@@ -63,7 +68,7 @@ def world_maps_hash(scene, world_digest, image, map_settings):
                          "rotation": image.rotation if image else None,
                          "heights": map_settings.heights,
                          "sampling": map_settings.sampling, **_lobes_key(map_settings),
-                         "sun_lobe": SUN_LOBE_VERSION,
+                         **_sun_key(scene),
                          "samples": None if source else scene.platelight.probe_samples,
                          "probe_height": None if source else scene.platelight.probe_height})
 

@@ -665,3 +665,7 @@ def test_the_probes_sun_is_baked_apart_and_shaded_through_the_lobe(bpy_clean, tm
     assert rgb == [0.0, 0.0, 0.0] and files["glossy2_sunless"] == "glossy2.exr"
     bpy.context.scene.platelight.probe_sun_lobe = True
     assert bound()[1]["glossy2_sunless"] == "glossy2_sunless.exr"
+    # the setting is part of the probe's inputs: off, the re-bake writes the paper's files alone
+    bpy.context.scene.platelight.probe_sun_lobe = False
+    bake(bpy, all_objects=True, cull=False)
+    assert not list(folder.glob("*_sunless*")) and "sun" not in json.loads((folder / "bake.json").read_text())

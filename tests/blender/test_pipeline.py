@@ -222,10 +222,12 @@ def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     scene.platelight.probe_auto_size = False       # every map at Probe Height (test_probe_size.py sizes)
     scene.platelight.probe_samples = 4
     # these tests check the render against the paper's look-ups from the probe centre (the numpy
-    # reference above); parallax-corrected look-ups, specular and diffuse, have their own tests
-    # (test_parallax.py, test_irradiance_grid.py)
+    # reference above); parallax-corrected look-ups, specular and diffuse, and the sun shaded
+    # through the lobe have their own tests (test_parallax.py, test_irradiance_grid.py,
+    # test_sun_lobe_render.py)
     scene.platelight.probe_parallax = False
     scene.platelight.probe_diffuse_parallax = False
+    scene.platelight.probe_sun_lobe = False        # the sun through the lobe: test_sun_lobe_render.py
     scene.frame_set(1)
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
     return scene, sphere, cube, plane
