@@ -12,6 +12,7 @@ import sbrdf_scene as sc
 from platelight.addon import names
 from platelight.addon.ibl.anisotropy import TAP_SLOPES
 from platelight.addon.ibl.distance import DISTANCE_NAME
+from platelight.addon.ibl import sun_lobe
 from platelight.addon.ibl.irradiance_grid import GRID_NAME
 from platelight.addon.material.params import PARAMETERS
 from platelight.addon.material.presets import PRESETS, preset_label, preset_params
@@ -62,8 +63,9 @@ def test_apply_sbrdf_converts_principled_and_binds_probe(bpy_clean, tmp_path):
     probe = sm.probe_node(mat).node_tree
     envs = [n for n in probe.nodes if n.bl_idname == "ShaderNodeTexEnvironment"
             and n.get("platelight_map") not in LOOKUP_FILES]     # the parallax look-ups have their own
-    # diffuse + each anisotropic tap's four maps + three refraction channels' four maps
-    expected = 1 + 4 * len(TAP_SLOPES) + 3 * 4
+    # the diffuse lobe's map + each anisotropic tap's three glossy/mirror maps + the specular
+    # lobe's diffuse map with and without the sun + three refraction channels' four maps
+    expected = 1 + 3 * len(TAP_SLOPES) + 2 + 3 * 4
     assert len(envs) == expected and all(n.image is not None for n in envs)
     assert {n.image.name for n in envs} == {f"{m}.exr" for m in sc.MAP_HEIGHTS}
     assert all(n.interpolation == "Linear" for n in envs)
@@ -381,8 +383,11 @@ def test_a_partial_bake_binds_the_maps_it_has(bpy_clean, tmp_path):
     mat = sm.apply_sbrdf_material(ob)
     assert mat["platelight_probe_dir"] == str(tmp_path / "matte")
     envs = [n for n in sm.probe_node(mat).node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment"]
+    # without a sun, a sunless look-up reads its map itself
+    diffuse = ("diffuse", sun_lobe.sunless_name("diffuse"))
     bound = {n["platelight_map"] for n in envs if n.image.name != "PlateLight Unbaked Map"}
-    assert bound == {"diffuse"}
-    assert all("matte" in n.image.filepath for n in envs if n["platelight_map"] == "diffuse")
+    assert bound == set(diffuse)
+    assert all("matte" in n.image.filepath and n.image.name == "diffuse.exr"
+               for n in envs if n["platelight_map"] in diffuse)
     # the others read the generated black stand-in: no file for Cycles to miss
-    assert all(n.image.source == "GENERATED" for n in envs if n["platelight_map"] != "diffuse")
+    assert all(n.image.source == "GENERATED" for n in envs if n["platelight_map"] not in diffuse)
