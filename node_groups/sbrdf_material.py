@@ -109,6 +109,8 @@ def bind_probe(material, probe_dir: str, label: str | None = None):
         node.name = node.label = names.PROBE_NODE
         node.location = (0, 0)
     node.node_tree = probe_maps.ensure_probe_group(probe_dir, label)
+    # a .blend from an older PlateLight: its SBRDF group lacks the outputs a new probe group reads
+    ensure_sbrdf_group()
     source = sbrdf_node(material)
     for name, _ in LOOKUP_SOCKETS:
         tree.links.new(source.outputs[name], node.inputs[name])

@@ -156,6 +156,12 @@ def test_group_is_idempotent_and_upgrades_in_place(bpy_clean, tmp_path):
     assert "Obsolete" not in [i.name for i in group.interface.items_tree]
     assert sm.read_params(mat).diffuse_albedo == pytest.approx(PRESETS["plastic"]["diffuse_albedo"])
     assert sm.probe_node(mat).inputs["Map Glossiness"].is_linked
+    # A file from before an output was added (session 13's Lobe View): re-binding it after a bake
+    # upgrades the SBRDF group and links the new output to the (rebuilt) probe group.
+    group.interface.remove(next(i for i in group.interface.items_tree if i.name == "Lobe View"))
+    group[sbrdf.VERSION_KEY] = 4
+    sm.bind_probe(mat, str(tmp_path))
+    assert group[sbrdf.VERSION_KEY] == sbrdf.VERSION and sm.probe_node(mat).inputs["Lobe View"].is_linked
 
 
 def test_version_1_groups_keep_the_papers_falloff(bpy_clean, tmp_path):
