@@ -18,6 +18,7 @@ from functools import lru_cache
 import numpy as np
 
 from .equirect import texel_directions, texel_solid_angles
+from .ggx import smith_lambda
 from .maps import MAP_NAMES, MAP_ROUGHNESS, tent_weights
 
 # mu = N.R at which each map's offset is tabulated (denser towards grazing, where it changes).
@@ -54,11 +55,7 @@ def kept_lobe_centroid(roughness: float, mu: float, height: int = 384) -> np.nda
     cos_h = half[:, 2]
     d = a2 / (np.pi * (cos_h * cos_h * (a2 - 1.0) + 1.0) ** 2)
 
-    def smith(c):
-        c = np.clip(c, 1e-9, 1.0)
-        return (np.sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)) - 1.0) / 2.0
-
-    weight = d / (1.0 + smith(mu) + smith(light[:, 2])) * solid
+    weight = d / (1.0 + smith_lambda(a2, mu) + smith_lambda(a2, light[:, 2])) * solid
     centroid = (weight[:, None] * light).sum(axis=0)
     return centroid / np.linalg.norm(centroid)
 

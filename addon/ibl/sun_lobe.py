@@ -36,6 +36,7 @@ import numpy as np
 from ..exr_io import write_exr
 from . import lights
 from .equirect import downsample_area
+from .ggx import smith_lambda
 from .maps import MAP_NAMES, MapSettings, compute_maps, map_filename, tent_weights
 
 VERSION = 1                 # in the probe's hash: a bake before the sunless maps is baked again
@@ -155,18 +156,13 @@ def directional_albedo(roughness: float, mu: float, steps: int = 1200, turns: in
                      np.broadcast_to(cos_h[:, None], (steps, turns))], -1)
     vh = half @ view
     nl = 2.0 * vh * half[..., 2] - mu
-
-    def smith(c):
-        c = np.clip(c, 1e-9, 1.0)
-        return (np.sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)) - 1.0) / 2.0
-    g2 = 1.0 / (1.0 + smith(mu) + smith(nl))
+    g2 = 1.0 / (1.0 + smith_lambda(a2, mu) + smith_lambda(a2, nl))
     return float(np.where((nl > 0) & (vh > 0), g2 * vh / (half[..., 2] * mu), 0.0).mean())
 
 
 def albedo(roughness, mu) -> np.ndarray:
     """A(mu, r) from the table, as the node group interpolates it (rows blended linearly in r)."""
-    roughness = np.clip(np.asarray(roughness, dtype=np.float64), ALBEDO_ROUGHNESS[0], ALBEDO_ROUGHNESS[-1])
-    mu = np.asarray(mu, dtype=np.float64)
+    roughness, mu = np.asarray(roughness, dtype=np.float64), np.asarray(mu, dtype=np.float64)
     total = np.zeros(np.broadcast(roughness, mu).shape)
     for weight, row in zip(roughness_weights(roughness), ALBEDO):
         total = total + weight * np.interp(mu, ALBEDO_MU, row)
@@ -195,8 +191,7 @@ def albedo_roughness(alpha_t, alpha_b):
 def sunless_diffuse_part(reflectance) -> np.ndarray:
     """How much of the diffuse map a specular lobe reads sunless: its mean reflectance F in [0, 1]
     (the rest reads the diffuse map with its sun)."""
-    return np.clip(np.mean(np.asarray(reflectance, dtype=np.float64), axis=-1), 0.0, 1.0) \
-        if np.ndim(reflectance) else np.clip(float(reflectance), 0.0, 1.0)
+    return np.clip(np.mean(np.atleast_1d(np.asarray(reflectance, dtype=np.float64)), axis=-1), 0.0, 1.0)
 
 
 def sun_share(glossiness, reflectance=1.0) -> np.ndarray:
