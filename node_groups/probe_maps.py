@@ -41,11 +41,10 @@ SUN_NODES = (names.SUN_DIRECTION_NODE, names.SUN_COLOR_NODE, names.SUN_ANGLE_NOD
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
               names.GRID_POINTS_NODE, names.GRID_HEIGHT_NODE)
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
-# What the specular look-ups read besides the diffuse map (split by the lobe's reflectance): the
-# sunless glossy maps (the maps themselves without a sun) and the mirror map, which keeps the sun.
+# What the specular look-ups read along the streak: the maps after the diffuse one (which they read
+# once, split by the lobe's reflectance), the glossy ones sunless, the mirror map with its sun.
 SUNLESS_NAMES = {sun_lobe.sunless_name(name): name for name in sun_lobe.SUNLESS_MAPS}
-SPECULAR_MAPS = tuple(None if n == "diffuse" else sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n
-                      for n in MAP_NAMES)
+STREAK_MAPS = tuple(sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n for n in MAP_NAMES[1:])
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
            ("Refraction Term", "NodeSocketColor"))
@@ -556,8 +555,6 @@ def _build(tree):
     def blended(direction, weights, map_names=MAP_NAMES):
         total = None
         for name, weight in zip(map_names, weights):
-            if name is None:
-                continue
             term = g.vmath("SCALE", env(name, direction), scale=weight)
             total = term if total is None else g.vmath("ADD", total, term)
         return total
@@ -577,7 +574,7 @@ def _build(tree):
     for slope in TAP_SLOPES:
         tap = g.vmath("NORMALIZE", g.vmath("ADD", specular_direction,
                                            g.vmath("SCALE", inp["Specular Spread"], scale=slope)))
-        term = blended(tap, specular_weights, SPECULAR_MAPS)
+        term = blended(tap, specular_weights[1:], STREAK_MAPS)
         streak = term if streak is None else g.vmath("ADD", streak, term)
     streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
     # The diffuse map, read once (a streak is far narrower than its lobe), with its sun and

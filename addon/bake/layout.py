@@ -78,13 +78,11 @@ def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:
     glossy), so no stale map is ever picked up. Returns the names removed."""
     removed = []
     for name in MAP_NAMES:
-        for path in [os.path.join(folder, map_filename(name, frame))] + (
-                [os.path.join(folder, sunless_filename(name, frame))] if name in SUNLESS_MAPS else []):
-            if name not in keep and os.path.isfile(path):
-                os.unlink(path)
-                if name not in removed:
-                    removed.append(name)
-    return removed
+        path = os.path.join(folder, map_filename(name, frame))
+        if name not in keep and os.path.isfile(path):
+            os.unlink(path)
+            removed.append(name)
+    return removed          # (the sunless maps are sun_lobe.bake_sunless's to write and remove)
 
 
 def remove_single_frame(folder: str) -> list[str]:
