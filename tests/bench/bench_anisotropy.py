@@ -44,13 +44,19 @@ def along_streak(found, normals, tangents, view, glossiness, amount):
     return sum(maps.blended_lookup(found, narrow, d) for d in taps) / len(taps)
 
 
-def brushed_ggx(env, roughness, amount, normals, view):
-    """(tangents, truth) of a view's pixels: brute-force Principled GGX of ``env`` at this
-    roughness and anisotropy, the tangent circling Z."""
+def mean_psnrs(env, roughness, amount, views, *shadings):
+    """Each shading's PSNR (a function (normals, tangents, view) -> image), averaged over
+    ``views``, against brute-force Principled GGX of ``env`` at this roughness and anisotropy,
+    the tangent circling Z."""
     aspect = float(anisotropy.aspect(amount))
-    tangents = reference.tangents_about_z(normals)
-    return tangents, reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
-                                               normals, tangents, view, TRUTH_HEIGHT)
+    scores = [[] for _ in shadings]
+    for normals, view in views:
+        tangents = reference.tangents_about_z(normals)
+        want = reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
+                                         normals, tangents, view, TRUTH_HEIGHT)
+        for score, shade in zip(scores, shadings):
+            score.append(psnr(shade(normals, tangents, view), want))
+    return [float(np.mean(score)) for score in scores]
 
 
 def main(out_dir: pathlib.Path) -> None:
@@ -63,13 +69,11 @@ def main(out_dir: pathlib.Path) -> None:
         for roughness, amount in MATERIALS:
             t0 = time.perf_counter()
             glossiness = roughness_to_glossiness(roughness)
-            round_scores, streak_scores = [], []
-            for normals, view in views:
-                tangents, want = brushed_ggx(env, roughness, amount, normals, view)
-                round_lobe = maps.blended_lookup(found, glossiness, lookups(normals, view, glossiness, True))
-                round_scores.append(psnr(round_lobe, want))
-                streak_scores.append(psnr(along_streak(found, normals, tangents, view, glossiness, amount), want))
-            rows.append((name, roughness, amount, float(np.mean(round_scores)), float(np.mean(streak_scores))))
+            round_db, streak_db = mean_psnrs(
+                env, roughness, amount, views,
+                lambda n, t, v: maps.blended_lookup(found, glossiness, lookups(n, v, glossiness, True)),
+                lambda n, t, v: along_streak(found, n, t, v, glossiness, amount))
+            rows.append((name, roughness, amount, round_db, streak_db))
             print(f"{name:10s} r {roughness:.2f} a {amount:.1f}  round {rows[-1][3]:6.2f} dB  "
                   f"streak {rows[-1][4]:6.2f} dB  ({time.perf_counter() - t0:.0f} s)", flush=True)
     write_report(out_dir / "anisotropy.md", rows)

@@ -24,8 +24,8 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import support  # noqa: E402,F401
-from bench_anisotropy import along_streak, brushed_ggx  # noqa: E402
-from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, psnr, sphere_view  # noqa: E402
+from bench_anisotropy import along_streak, mean_psnrs  # noqa: E402
+from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, sphere_view  # noqa: E402
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps, sun_lobe  # noqa: E402
@@ -68,12 +68,10 @@ def main(out_dir: pathlib.Path) -> None:
             sunless.update(computed)
         for roughness, amount in MATERIALS:
             t0 = time.perf_counter()
-            before, after = [], []
-            for normals, view in views:
-                tangents, want = brushed_ggx(env, roughness, amount, normals, view)
-                before.append(psnr(shaded(full, normals, tangents, view, roughness, amount), want))
-                after.append(psnr(shaded(sunless, normals, tangents, view, roughness, amount, sun), want))
-            rows.append((name, sun is not None, roughness, amount, float(np.mean(before)), float(np.mean(after))))
+            before, after = mean_psnrs(env, roughness, amount, views,
+                                       lambda n, t, v: shaded(full, n, t, v, roughness, amount),
+                                       lambda n, t, v: shaded(sunless, n, t, v, roughness, amount, sun))
+            rows.append((name, sun is not None, roughness, amount, before, after))
             print(f"{name:10s} r {roughness:.2f} a {amount:.1f}  maps {rows[-1][4]:6.2f} dB  "
                   f"sun lobe {rows[-1][5]:6.2f} dB  ({time.perf_counter() - t0:.0f} s)", flush=True)
     write_report(out_dir / "sun_lobe.md", rows)
