@@ -8,7 +8,8 @@ maps and outputs the shader. The material wires the two together (operators/mate
     R   = unit vector surface -> viewer, in the frame (T', B', N), T' = tangent rotated by theta
     p   = Cx (R.T') T' + Cy (R.B') B' + Cz (R.N) N        blended towards R by Retro-Reflection
     g   = max(0, N.p)                                     (clamped: a peak below the surface gets no light)
-    f   = (1 - clamp(R.N, 0, 1))^(1/phi - 1)              (phi clamped to >= 1e-4: finite at phi -> 0)
+    f   = c (1 - clamp(R.N, 0, 1))^(1/phi - 1)            (phi clamped to >= 1e-4: finite at phi -> 0;
+          c = Fresnel Peak, 1 in the paper: a rough surface's f stops short of 1 at grazing)
     rho_s' = rho_s + (1 - rho_s) f,  n' = n + (1 - n) f,  g' = g + (1 - g) f
     w   = lerp(1, g', P),  rho_d' = lerp(rho_d (1 - rho_s'), rho_d, P)      P = Paper Falloff
           (0, the default: no cosine, layered energy as Principled; 1: the paper's Eq 1, 7)
@@ -35,8 +36,9 @@ from ._build import VERSION_KEY, Graph, float_curve, io_nodes, sync_interface, t
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
 # 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt;
-# 4: Anisotropy input, Specular Spread output; 5: Lobe View, Lobe Tangent, Lobe Alphas outputs
-VERSION = 5
+# 4: Anisotropy input, Specular Spread output; 5: Lobe View, Lobe Tangent, Lobe Alphas outputs;
+# 6: Fresnel Peak input (existing instances get 1: their old look)
+VERSION = 6
 PHI_MIN = 1.0e-4
 
 # The lookup outputs, consumed by name by every "PlateLight Probe" group.
@@ -148,7 +150,8 @@ def _build(tree):
     cos_v = g.math("MINIMUM", g.math("MAXIMUM", rn, 0.0), 1.0)
     phi = g.math("MAXIMUM", inp["Fresnel Falloff"], PHI_MIN)
     exponent = g.math("SUBTRACT", g.math("DIVIDE", 1.0, phi), 1.0)
-    fresnel = g.math("POWER", g.math("SUBTRACT", 1.0, cos_v), exponent)
+    fresnel = g.math("MULTIPLY", inp["Fresnel Peak"],
+                     g.math("POWER", g.math("SUBTRACT", 1.0, cos_v), exponent))
     spec_albedo = g.mix("RGBA", fresnel, inp["Specular Albedo"], (1.0, 1.0, 1.0, 1.0))
     narrow, streak, alphas = _anisotropy(g, inp["Glossiness"], inp["Anisotropy"], fresnel)
     gloss = g.math("ADD", narrow, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, narrow), fresnel))

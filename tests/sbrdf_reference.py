@@ -87,7 +87,7 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None):
     peak = (1 - w) * peak + w * R
     g = np.maximum(_dot(N, peak), 0.0)
     phi = max(p["fresnel_falloff"], 1e-4)
-    f = (1.0 - np.clip(rn, 0, 1)) ** (1.0 / phi - 1.0)
+    f = p.get("fresnel_peak", 1.0) * (1.0 - np.clip(rn, 0, 1)) ** (1.0 / phi - 1.0)
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
     amount = p.get("anisotropy", 0.0)
     narrow = anisotropy.narrow_glossiness(p["glossiness"], amount)

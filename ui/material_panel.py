@@ -12,7 +12,7 @@ from .registration import register_classes, unregister_classes
 SECTIONS = (
     ("Albedo", ("Diffuse Albedo", "Specular Albedo")),
     ("Lobe", ("Glossiness", "Anisotropy", "Cx", "Cy", "Cz", "Tangent Rotation", "Retro-Reflection")),
-    ("Fresnel", ("Fresnel Falloff", "Paper Falloff")),
+    ("Fresnel", ("Fresnel Falloff", "Fresnel Peak", "Paper Falloff")),
     ("Transparency", ("Alpha", "IOR", "Dispersion")),
     ("Emission", ("Emission Color", "Emission Strength")),
 )

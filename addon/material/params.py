@@ -36,6 +36,10 @@ PARAMETERS = (
               "Lafortune coefficient along the normal"),
     ParamSpec("fresnel_falloff", "Fresnel Falloff", "float", 0.2, 0.0, 1.0,
               "phi: Fresnel strength; near 0 only grazing angles brighten, 1 makes f = 1 everywhere"),
+    ParamSpec("fresnel_peak", "Fresnel Peak", "float", 1.0, 0.0, 1.0,
+              "c: the Fresnel term at grazing, f = c (1 - cos)^(1/phi - 1); 1 is the paper's form "
+              "(every surface a mirror at grazing), a rough surface reaches less: converted from "
+              "Principled it follows GGX's albedo"),
     ParamSpec("tangent_rotation", "Tangent Rotation", "float", 0.0, 0.0, 2.0 * math.pi,
               "Rotation of the tangent frame (radians) in which Cx, Cy and Anisotropy apply"),
     ParamSpec("anisotropy", "Anisotropy", "float", 0.0, 0.0, 1.0,
@@ -74,6 +78,7 @@ class SBRDFParams:
     cy: float = SPEC["cy"].default
     cz: float = SPEC["cz"].default
     fresnel_falloff: float = SPEC["fresnel_falloff"].default
+    fresnel_peak: float = SPEC["fresnel_peak"].default
     tangent_rotation: float = SPEC["tangent_rotation"].default
     anisotropy: float = SPEC["anisotropy"].default
     emission_color: tuple = SPEC["emission_color"].default

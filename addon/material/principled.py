@@ -10,11 +10,18 @@ Mapping (documented in docs/sbrdf.md):
   whose reflection lobe is twice as wide: it put the maps at r = 0.418, 0.669, 0.904 and gave a
   roughness-0.3 copper 28 % of the mirror map, a sharp sun where the truth has a soft one:
   26.5 dB object PSNR against the catcher's 40.7 at 960x540.)
-- Fresnel falloff phi from roughness: f = (1 - cos)^(1/phi - 1) follows the rise towards grazing
-  of the GGX layer's directional albedo E(cos) (IOR 1.5), fitted by least squares at each knot:
-  Schlick's exponent 5 (phi = 1/6) for a polished surface, about 100 for a rough one, whose
-  microfacets average the Fresnel rise away. A Schlick rise on a roughness-1 sphere took 60 % of
-  the diffuse at its rim (a rough dielectric reflects 8 % there).
+- Fresnel from roughness, f = c (1 - cos)^(1/phi - 1) (c: Fresnel Peak), fitted by least squares
+  at each roughness knot to the rise towards grazing of the layer's directional albedo E(cos):
+  - a dielectric (IOR 1.5, Cycles' multiscatter GGX): E(cos) = E(1) + (1 - E(1)) f, and rho_s
+    scaled by E(1) / F0 (masking: a roughness-1 plastic reflects 1.5 % head-on, not F0's 4 %).
+    Polished, c = 0.87 and k = 4.4 (Fresnel's own curve); rough, c = 0.05: its rim reflects 9 %,
+    not the mirror's 100 %. The paper's c = 1 with one exponent could not have both: fitted to
+    the normalised rise it took k = 23 at roughness 0.5 and reflected 4 % where GGX reflects 9 %
+    (cos 0.35, 2.3x too little); a Schlick rise (k = 5) on a roughness-1 sphere took 60 % of the
+    diffuse at its rim.
+  - a metal: c = 1 and the exponent of the dielectric's normalised rise (Schlick's 5 polished,
+    about 100 rough), which follows a roughness-0.3 copper within 2 % down to cos 0.25.
+  Blended by metallic.
 - alpha = principled alpha * (1 - transmission (1 - metallic)); IOR as is; emission as is.
 - anisotropy: as is, with Cx = Cy = -1 (the peak at the mirror direction) and the glossiness of
   the roughness; the group reads the maps at the narrow axis's glossiness along the streak
@@ -34,9 +41,16 @@ from ..ibl import maps
 from .params import SBRDFParams
 
 METAL_THRESHOLD = 0.2
-# Fitted by tests/test_material.py::test_fresnel_falloff_knots_follow_the_ggx_albedo (brute force).
+# A metal's Fresnel exponent, fitted by tests/test_material.py::
+# test_metal_fresnel_knots_follow_the_ggx_albedo (brute force); its Fresnel Peak is 1.
 _FALLOFF_ROUGHNESS = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0])
 _FALLOFF_EXPONENT = np.array([5.0, 5.4, 6.9, 10.9, 23.2, 58.6, 86.9, 102.4, 118.1])
+# A dielectric's (IOR 1.5, multiscatter GGX): Fresnel Peak c, exponent k and E(1) / F0, fitted by
+# tests/test_material.py::test_dielectric_fresnel_knots_follow_the_ggx_albedo (brute force).
+_DIELECTRIC_ROUGHNESS = np.linspace(0.0, 1.0, 11)
+_DIELECTRIC_PEAK = np.array([0.874, 0.830, 0.635, 0.423, 0.276, 0.181, 0.125, 0.093, 0.073, 0.061, 0.053])
+_DIELECTRIC_EXPONENT = np.array([4.40, 4.25, 3.65, 3.05, 2.70, 2.50, 2.45, 2.45, 2.35, 2.30, 2.25])
+_DIELECTRIC_HEAD_ON = np.array([1.0, 1.0, 1.001, 0.995, 0.977, 0.934, 0.855, 0.742, 0.612, 0.487, 0.382])
 
 
 @dataclasses.dataclass
@@ -65,7 +79,24 @@ def glossiness_to_roughness(glossiness: float) -> float:
 
 
 def roughness_to_fresnel_falloff(roughness: float) -> float:
+    """A metal's phi (its Fresnel Peak is 1)."""
     return 1.0 / (1.0 + float(np.interp(roughness, _FALLOFF_ROUGHNESS, _FALLOFF_EXPONENT)))
+
+
+def dielectric_fresnel(roughness: float) -> tuple[float, float, float]:
+    """A dielectric's (phi, Fresnel Peak c, E(1) / F0) at this roughness."""
+    knots = _DIELECTRIC_ROUGHNESS
+    exponent = float(np.interp(roughness, knots, _DIELECTRIC_EXPONENT))
+    return (1.0 / (1.0 + exponent), float(np.interp(roughness, knots, _DIELECTRIC_PEAK)),
+            float(np.interp(roughness, knots, _DIELECTRIC_HEAD_ON)))
+
+
+def fresnel_terms(roughness: float, metallic: float) -> tuple[float, float, float]:
+    """(phi, Fresnel Peak, the factor on the dielectric's F0): a dielectric's and a metal's
+    exponent and peak blended by metallic."""
+    phi_d, peak_d, head_on = dielectric_fresnel(roughness)
+    exponent = (1.0 - metallic) * (1.0 / phi_d - 1.0) + metallic * (1.0 / roughness_to_fresnel_falloff(roughness) - 1.0)
+    return 1.0 / (1.0 + exponent), (1.0 - metallic) * peak_d + metallic, head_on
 
 
 def _f0(ior: float, level: float) -> float:
@@ -76,14 +107,15 @@ def principled_to_sbrdf(p: PrincipledValues) -> SBRDFParams:
     base = np.clip(np.asarray(p.base_color[:3], dtype=float), 0.0, 1.0)
     metal = min(max(p.metallic, 0.0), 1.0)
     f0 = _f0(max(p.ior, 1.0), p.specular_ior_level)
-    specular = (1.0 - metal) * f0 + metal * base
+    phi, peak, head_on = fresnel_terms(min(max(p.roughness, 0.0), 1.0), metal)
+    specular = (1.0 - metal) * f0 * head_on + metal * base
     alpha = p.alpha * (1.0 - p.transmission * (1.0 - metal))
     return SBRDFParams(
         diffuse_albedo=tuple(float(c) for c in base * (1.0 - metal)),
         specular_albedo=tuple(float(c) for c in specular),
         glossiness=roughness_to_glossiness(p.roughness),
         cx=-1.0, cy=-1.0, cz=1.0,
-        fresnel_falloff=roughness_to_fresnel_falloff(p.roughness),
+        fresnel_falloff=phi, fresnel_peak=peak,
         tangent_rotation=2.0 * math.pi * (p.anisotropic_rotation % 1.0),
         anisotropy=float(p.anisotropic),
         emission_color=tuple(float(c) for c in p.emission_color[:3]),
@@ -101,7 +133,7 @@ def sbrdf_to_principled(s: SBRDFParams) -> PrincipledValues:
         base, level = spec, 0.5
     else:
         base = diff
-        f0_ior = _f0(max(s.ior, 1.0), 0.5)
+        f0_ior = _f0(max(s.ior, 1.0), 0.5) * dielectric_fresnel(glossiness_to_roughness(s.glossiness))[2]
         level = 0.5 * float(spec.mean()) / f0_ior if f0_ior > 0 else 0.5
     transmission = 1.0 - s.alpha if not metal else 0.0
     anis = (1.0 - min(abs(s.cy), abs(s.cx)) / max(abs(s.cx), abs(s.cy), 1e-9)) / 0.9

@@ -7,6 +7,7 @@ node.inputs['Cx'].default_value = -1.0
 node.inputs['Cy'].default_value = -1.0
 node.inputs['Cz'].default_value = 1.0
 node.inputs['Fresnel Falloff'].default_value = 0.16666666666666666
+node.inputs['Fresnel Peak'].default_value = 1.0
 node.inputs['Tangent Rotation'].default_value = 0.0
 node.inputs['Anisotropy'].default_value = 0.0
 node.inputs['Emission Color'].default_value = (1.0, 1.0, 1.0, 1.0)
