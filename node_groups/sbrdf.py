@@ -95,7 +95,9 @@ def ensure_sbrdf_group():
     elif tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2:
         return tree
     old_version = tree.get(VERSION_KEY) if len(tree.nodes) > 2 else None
+    before = {item.name for item in tree.interface.items_tree if getattr(item, "in_out", None) == "INPUT"}
     sync_interface(tree, _interface())
+    _default_new_inputs(tree, before)
     if old_version == 1:
         _keep_paper_falloff(tree)
     tree.nodes.clear()
@@ -104,14 +106,32 @@ def ensure_sbrdf_group():
     return tree
 
 
-def _keep_paper_falloff(tree):
-    """Materials made before the Paper Falloff input rendered with the paper's g': keep their look."""
+def _instances(tree):
     for material in bpy.data.materials:
         if material.node_tree is None:
             continue
         for node in material.node_tree.nodes:
-            if getattr(node, "node_tree", None) == tree and "Paper Falloff" in node.inputs:
-                node.inputs["Paper Falloff"].default_value = 1.0
+            if getattr(node, "node_tree", None) == tree:
+                yield node
+
+
+def _default_new_inputs(tree, before):
+    """Inputs an upgrade adds start at 0 on existing nodes, not at the interface's default (a
+    Fresnel Peak of 0 switched an old material's Fresnel off): give them the default."""
+    added = [item for item in tree.interface.items_tree
+             if getattr(item, "in_out", None) == "INPUT" and item.name not in before
+             and hasattr(item, "default_value")]
+    for node in _instances(tree):
+        for item in added:
+            if item.name in node.inputs:
+                node.inputs[item.name].default_value = item.default_value
+
+
+def _keep_paper_falloff(tree):
+    """Materials made before the Paper Falloff input rendered with the paper's g': keep their look."""
+    for node in _instances(tree):
+        if "Paper Falloff" in node.inputs:
+            node.inputs["Paper Falloff"].default_value = 1.0
 
 
 def _build(tree):

@@ -183,6 +183,30 @@ def test_version_1_groups_keep_the_papers_falloff(bpy_clean, tmp_path):
     assert new != old and sm.read_params(new).paper_falloff == 0.0
 
 
+def test_groups_before_fresnel_peak_keep_the_papers_fresnel(bpy_clean, tmp_path):
+    """A material made before the Fresnel Peak input (group version 5) keeps the paper's f, which
+    reaches 1 at grazing; a rough Principled plastic converted now reaches GGX's 18 %."""
+    bpy = bpy_clean
+    from bl_ext.dev.platelight.node_groups import sbrdf
+
+    ob = _sphere(bpy)
+    ob.platelight.probe_dir = str(tmp_path)
+    sm = _sm()
+    old = sm.apply_sbrdf_material(ob, preset_name="plastic")
+    group = bpy.data.node_groups[names.SBRDF_GROUP]
+    group[sbrdf.VERSION_KEY] = 5
+    group.interface.remove(next(i for i in group.interface.items_tree if i.name == "Fresnel Peak"))
+    assert "Fresnel Peak" not in sm.sbrdf_node(old).inputs
+    sbrdf.ensure_sbrdf_group()
+    assert sm.read_params(old).fresnel_peak == 1.0
+    plastic = _principled(bpy, "Plastic")
+    next(n for n in plastic.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled").inputs["Roughness"].default_value = 0.5
+    other = _sphere(bpy, "Other")
+    other.data.materials.append(plastic)
+    converted = sm.apply_sbrdf_material(other)
+    assert sm.read_params(converted).fresnel_peak == pytest.approx(0.181, abs=1e-3)
+
+
 def test_socket_limits_match_parameter_ranges(bpy_clean):
     from bl_ext.dev.platelight.node_groups import sbrdf
 
