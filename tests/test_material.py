@@ -44,7 +44,7 @@ def _doc(**overrides):
     ("{oops", "not valid JSON"),
     ("[1, 2]", "not a PlateLight SBRDF material"),
     (json.dumps({"format": "something-else", "version": 1}), "not a PlateLight SBRDF material"),
-    (_doc(version=3), "version 3"),
+    (_doc(version=4), "version 4"),
     (_doc(version="1"), "no valid \"version\""),
     (_doc(parameters=[1]), "no \"parameters\""),
     (_doc(parameters={"shininess": 3}), "Unknown SBRDF parameter 'shininess'"),
@@ -69,6 +69,10 @@ def test_json_missing_file_and_partial_parameters(tmp_path):
     (tmp_path / "p2.json").write_text(json.dumps(
         {"format": "platelight-sbrdf", "version": 2, "parameters": {"glossiness": 0.5}}))
     assert json_io.load_params(tmp_path / "p2.json")[0].paper_falloff == 0.0
+    # Files from before the Fresnel Peak (versions 1 and 2) keep the paper's f, which reaches 1.
+    assert p.fresnel_peak == 1.0 and json_io.load_params(tmp_path / "p2.json")[0].fresnel_peak == 1.0
+    saved = json.loads(json_io.params_to_json(SBRDFParams(fresnel_peak=0.2)))
+    assert saved["version"] == 3 and saved["parameters"]["fresnel_peak"] == 0.2
 
 
 def _median_angle(weights, theta):

@@ -1,13 +1,15 @@
 """SBRDF material files (JSON): the paper's "material editor that exports its configuration".
 
-    {"format": "platelight-sbrdf", "version": 2, "name": "Chrome",
+    {"format": "platelight-sbrdf", "version": 3, "name": "Chrome",
      "parameters": {"diffuse_albedo": [0, 0, 0], "glossiness": 1.0, ...}}
 
 Reading validates everything before anything is applied: a malformed file, another format, a
 newer version, an unknown or mistyped parameter raises PlateLightError (one sentence). Missing
 parameters take their defaults; values out of range are clamped (as the node sockets do).
 Version 1 predates ``paper_falloff``: those materials were made with the paper's g', so a version-1
-file without it reads as paper_falloff = 1 (the look it was saved with)."""
+file without it reads as paper_falloff = 1 (the look it was saved with). Version 3 adds
+``fresnel_peak``; an older file without it reads as 1, the paper's Fresnel it was made with, and an
+older PlateLight reading a version-3 file says it is newer rather than that a parameter is unknown."""
 from __future__ import annotations
 
 import dataclasses
@@ -18,7 +20,7 @@ from ..errors import PlateLightError
 from .params import SBRDFParams, validate_value
 
 FORMAT = "platelight-sbrdf"
-VERSION = 2
+VERSION = 3
 
 
 def params_to_json(params: SBRDFParams, name: str = "") -> str:
