@@ -48,7 +48,7 @@ def weight_error(principled, roughness, terms):
     return float(np.abs(weight - albedo).max())
 
 
-def converters(bpy):
+def converters():
     """Every loaded copy of the conversion module (the extension's and the test package's)."""
     return [m for name, m in sys.modules.items() if name.endswith("addon.material.principled")]
 
@@ -57,7 +57,7 @@ def main(out_dir: pathlib.Path) -> None:
     bc.W, bc.H = SIZE
     bc.TRUTH_SAMPLES = TRUTH_SAMPLES
     bpy = bc.conftest._import_bpy_with_extension()
-    modules = converters(bpy)
+    modules = converters()
     fitted = {m: m.fresnel_terms for m in modules}
     hdri = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{bc.HDRI}.exr")
     rows = []
@@ -87,11 +87,19 @@ def main(out_dir: pathlib.Path) -> None:
 
 def write_report(out_dir, rows):
     lines = ["# A dielectric's Fresnel: fitted peak against the paper's", "",
-             __doc__.split("\n\n")[1].replace("\n", " ").strip(), "",
+             "Principled plastics (IOR 1.5, Cycles' default multiscatter GGX), converted to the SBRDF "
+             "two ways, measured two ways (`tests/bench/bench_fresnel.py`):", "",
+             "- *max weight error*: the SBRDF's specular weight rho_s + (1 - rho_s) c (1 - cos)^k "
+             "against the layer's directional albedo E(cos) by brute force (tests/test_material.py's "
+             "visible-normal quadrature with Cycles' energy compensation), over cos in [0.1, 1];",
+             "- *object PSNR*: the composite benchmark's shot (tests/bench/bench_composite.py: "
+             f"{SIZE[0]}x{SIZE[1]}, a sphere on a phantom floor under `{bc.HDRI}`, the default route at "
+             f"{SAMPLES} samples, frame {bc.SCORED_FRAMES[0]} scored) with a plastic sphere of colour "
+             f"{COLOUR}, against a {TRUTH_SAMPLES}-spp path-traced truth.", "",
              "*paper*: f = (1 - cos)^k reaching 1 at grazing, k fitted to the albedo's normalised "
              "rise, rho_s = F0 (the conversion before session 14). *fitted*: f = c (1 - cos)^k with the "
-             "Fresnel Peak c and k fitted together, rho_s = F0 E(1)/F0 (the default now). Time: the "
-             "shot's set-up, bake and two frames (not comparable across machines; the same work both ways).",
+             "Fresnel Peak c and k fitted together, rho_s = E(1) (the default now). Time: the shot's "
+             "set-up, bake and two frames (the same work both ways).",
              "", "| roughness | conversion | max weight error | object PSNR (dB) | s |",
              "|---:|---|---:|---:|---:|"]
     for r in rows:

@@ -164,20 +164,28 @@ def test_group_is_idempotent_and_upgrades_in_place(bpy_clean, tmp_path):
     assert group[sbrdf.VERSION_KEY] == sbrdf.VERSION and sm.probe_node(mat).inputs["Lobe View"].is_linked
 
 
-def test_version_1_groups_keep_the_papers_falloff(bpy_clean, tmp_path):
-    """Materials made before the Paper Falloff input rendered with the paper's g': the upgrade
-    keeps that (1) on them, while new materials get the default (0)."""
-    bpy = bpy_clean
+def _upgraded_from(bpy, tmp_path, preset, version, missing):
+    """A material with ``preset`` on a group made as ``version``, before its ``missing`` input
+    existed, upgraded to the current group."""
     from bl_ext.dev.platelight.node_groups import sbrdf
 
     ob = _sphere(bpy)
     ob.platelight.probe_dir = str(tmp_path)
-    sm = _sm()
-    old = sm.apply_sbrdf_material(ob, preset_name="chrome")
+    material = _sm().apply_sbrdf_material(ob, preset_name=preset)
     group = bpy.data.node_groups[names.SBRDF_GROUP]
-    group[sbrdf.VERSION_KEY] = 1
-    group.interface.remove(next(i for i in group.interface.items_tree if i.name == "Paper Falloff"))
+    group[sbrdf.VERSION_KEY] = version
+    group.interface.remove(next(i for i in group.interface.items_tree if i.name == missing))
+    assert missing not in _sm().sbrdf_node(material).inputs
     sbrdf.ensure_sbrdf_group()
+    return material
+
+
+def test_version_1_groups_keep_the_papers_falloff(bpy_clean, tmp_path):
+    """Materials made before the Paper Falloff input rendered with the paper's g': the upgrade
+    keeps that (1) on them, while new materials get the default (0)."""
+    bpy = bpy_clean
+    sm = _sm()
+    old = _upgraded_from(bpy, tmp_path, "chrome", 1, "Paper Falloff")
     assert sm.read_params(old).paper_falloff == 1.0
     new = sm.apply_sbrdf_material(_sphere(bpy), preset_name="chrome")
     assert new != old and sm.read_params(new).paper_falloff == 0.0
@@ -187,17 +195,8 @@ def test_groups_before_fresnel_peak_keep_the_papers_fresnel(bpy_clean, tmp_path)
     """A material made before the Fresnel Peak input (group version 5) keeps the paper's f, which
     reaches 1 at grazing; a rough Principled plastic converted now reaches GGX's 18 %."""
     bpy = bpy_clean
-    from bl_ext.dev.platelight.node_groups import sbrdf
-
-    ob = _sphere(bpy)
-    ob.platelight.probe_dir = str(tmp_path)
     sm = _sm()
-    old = sm.apply_sbrdf_material(ob, preset_name="plastic")
-    group = bpy.data.node_groups[names.SBRDF_GROUP]
-    group[sbrdf.VERSION_KEY] = 5
-    group.interface.remove(next(i for i in group.interface.items_tree if i.name == "Fresnel Peak"))
-    assert "Fresnel Peak" not in sm.sbrdf_node(old).inputs
-    sbrdf.ensure_sbrdf_group()
+    old = _upgraded_from(bpy, tmp_path, "plastic", 5, "Fresnel Peak")
     assert sm.read_params(old).fresnel_peak == 1.0
     plastic = _principled(bpy, "Plastic")
     next(n for n in plastic.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled").inputs["Roughness"].default_value = 0.5
