@@ -148,6 +148,11 @@ def _multiscatter_albedo(mu, alpha, n=96):
     return _ggx_albedo(mu, alpha, n) * (1 + 0.5 / (4.08567 + 1.00071 * 1.5) * (1 / white - 1))
 
 
+def _specular_weight(s, mus):
+    """The SBRDF's specular weight rho_s + (1 - rho_s) f at cos ``mus`` (red channel)."""
+    return s.specular_albedo[0] + (1 - s.specular_albedo[0]) * s.fresnel_peak * (1 - mus) ** (1 / s.fresnel_falloff - 1)
+
+
 def test_dielectric_fresnel_knots_follow_the_ggx_albedo():
     """At each roughness knot a dielectric's Fresnel Peak c and exponent k are the least-squares
     fit (projected area weighted) of c (1 - mu)^k to the rise of its albedo, (E(mu) - E(1)) /
@@ -167,9 +172,8 @@ def test_dielectric_fresnel_knots_follow_the_ggx_albedo():
         assert exponent == pytest.approx(exponents[best], abs=0.15), roughness
         assert head_on == pytest.approx(albedo[-1] / 0.04, abs=0.01), roughness
         s = principled.principled_to_sbrdf(principled.PrincipledValues(roughness=roughness))
-        weight = s.specular_albedo[0] + (1 - s.specular_albedo[0]) * s.fresnel_peak * (1 - mus) ** (1 / s.fresnel_falloff - 1)
         useful = mus >= 0.1
-        assert (np.abs(weight - albedo) - 0.03 * albedo)[useful].max() < 0.01, roughness
+        assert (np.abs(_specular_weight(s, mus) - albedo) - 0.03 * albedo)[useful].max() < 0.01, roughness
 
 
 def test_metal_fresnel_knots_follow_the_ggx_albedo():

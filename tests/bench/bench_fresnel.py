@@ -39,13 +39,12 @@ def paper_terms(principled):
     return lambda roughness, metallic: (principled.roughness_to_fresnel_falloff(roughness), 1.0, 1.0)
 
 
-def weight_error(principled, roughness, terms):
+def weight_error(principled, roughness):
+    """Max |specular weight - albedo| over cos 0.1..1 of a plastic converted by ``principled``."""
     mus = np.linspace(0.1, 1.0, 46)
     albedo = np.array([test_material._multiscatter_albedo(mu, max(roughness ** 2, 1e-4)) for mu in mus])
-    phi, peak, head_on = terms(roughness, 0.0)
-    rho = 0.04 * head_on
-    weight = rho + (1 - rho) * peak * (1 - mus) ** (1 / phi - 1)
-    return float(np.abs(weight - albedo).max())
+    converted = principled.principled_to_sbrdf(principled.PrincipledValues(roughness=roughness))
+    return float(np.abs(test_material._specular_weight(converted, mus) - albedo).max())
 
 
 def converters():
@@ -68,7 +67,7 @@ def main(out_dir: pathlib.Path) -> None:
         for mode in ("paper", "fitted"):
             for m in modules:
                 m.fresnel_terms = fitted[m] if mode == "fitted" else paper_terms(m)
-            error = weight_error(modules[0], roughness, modules[0].fresnel_terms)
+            error = weight_error(modules[0], roughness)
             t0 = time.perf_counter()
             images, *_ = bc.composite_shot(bpy, hdri, material, False, "sbrdf", SAMPLES, plate_path,
                                            folder / f"sbrdf_{mode}")
