@@ -11,7 +11,7 @@ import pytest
 import support  # noqa: F401  (imports this checkout as `platelight`)
 from platelight.addon.bake import culling, frames, hashing, layout, needs
 from platelight.addon.errors import PlateLightError
-from platelight.addon.ibl.maps import MAP_GLOSSINESS, MAP_NAMES, map_weights
+from platelight.addon.ibl.maps import MAP_GLOSSINESS, MAP_NAMES, footprint_glossiness, map_weights, tent_weights
 
 
 # ---------------------------------------------------------------- frames
@@ -74,8 +74,12 @@ def test_hash_of_arrays_is_cheap_for_big_meshes():
 @pytest.mark.parametrize("lobes, expected", [
     (needs.Lobes(diffuse=True, specular=False, glossiness=0.5, fresnel=False), ("diffuse",)),
     (needs.Lobes(diffuse=False, specular=True, glossiness=1.0, fresnel=True), ("specular",)),
-    (needs.Lobes(diffuse=False, specular=True, glossiness=1 / 3, fresnel=False), ("glossy1",)),
-    (needs.Lobes(diffuse=False, specular=True, glossiness=0.5, fresnel=False), ("glossy1", "glossy2")),
+    # with Fresnel off too: near a contact the glossy footprint sharpens the look-up to the mirror
+    (needs.Lobes(diffuse=False, specular=True, glossiness=1 / 3, fresnel=False),
+     ("glossy1", "glossy2", "specular")),
+    (needs.Lobes(diffuse=False, specular=True, glossiness=0.5, fresnel=False),
+     ("glossy1", "glossy2", "specular")),
+    (needs.Lobes(diffuse=False, specular=True, glossiness=0.0, fresnel=False), ("diffuse",)),
     (needs.Lobes(diffuse=False, specular=True, glossiness=0.5, fresnel=True),
      ("glossy1", "glossy2", "specular")),
     (needs.Lobes(diffuse=True, specular=False, glossiness=0.0, fresnel=True), needs.MAP_NAMES),
@@ -134,14 +138,21 @@ def test_map_weights_blend_neighbouring_anchors():
     assert map_weights(0.5) == pytest.approx({"diffuse": 0, "glossy1": 0.5, "glossy2": 0.5, "specular": 0})
 
 
-def test_glossiness_blend_matches_anchor_neighbours():
-    """Every glossiness reads exactly the maps whose anchors bracket it (design.md's blend)."""
+def test_glossiness_reads_its_anchor_neighbours_and_the_sharper_maps_its_footprint_reaches():
+    """Every glossiness reads the maps whose anchors bracket it (design.md's blend) and, above 0,
+    every sharper one: the glossy footprint can narrow the look-up up to the mirror map, and an
+    unbaked map would read black there."""
     for n in np.linspace(0, 1, 61):
         got = needs.glossy_maps(n, fresnel=False)
         anchors = sorted(MAP_GLOSSINESS.items(), key=lambda kv: kv[1])
         upper = min((a for a in anchors if a[1] >= n - 1e-12), key=lambda kv: kv[1])
         lower = max((a for a in anchors if a[1] <= n + 1e-12), key=lambda kv: kv[1])
-        assert got == {lower[0], upper[0]}, n
+        assert {lower[0], upper[0]} <= got, n
+        sharper = set(MAP_NAMES[MAP_NAMES.index(lower[0]):]) if n > 0 else {lower[0]}
+        assert got == sharper, n
+        # the footprint's narrowest look-up for this lobe lies among them
+        narrowest = float(footprint_glossiness(n, 0.0))
+        assert all(w == 0 or name in got for name, w in zip(MAP_NAMES, tent_weights(narrowest))), n
 
 
 # ---------------------------------------------------------------- culling

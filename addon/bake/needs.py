@@ -4,8 +4,10 @@ Glossiness n in [0, 1] blends linearly between the maps anchored at 0 (diffuse),
 (glossy1), 2/3 (glossy2) and 1 (specular) (design.md; the rule is ibl/maps.map_weights). Eq 4-7's Fresnel term raises the
 glossiness towards 1 at grazing angles (n' = n + (1 - n) f) and adds specular reflection even
 where the specular albedo is 0 (rho_s' = rho_s + (1 - rho_s) f), so a lobe with Fresnel on needs
-every map from n up to the specular one. An anisotropic lobe reads the maps at its narrow axis's
-glossiness (ibl/anisotropy.narrow_glossiness), which is what counts here."""
+every map from n up to the specular one. So does any lobe sharper than the diffuse map's: near a
+contact the parallax search's glossy footprint (ibl/maps.footprint_glossiness) narrows its look-up
+towards the specular map, even with Fresnel off. An anisotropic lobe reads the maps at its narrow
+axis's glossiness (ibl/anisotropy.narrow_glossiness), which is what counts here."""
 from __future__ import annotations
 
 import dataclasses
@@ -33,11 +35,15 @@ class Lobes:
 
 
 def glossy_maps(n: float | None, fresnel: bool) -> set[str]:
-    """Maps a specular lobe of glossiness ``n`` reads (with Fresnel: all from n up to 1)."""
+    """Maps a specular lobe of glossiness ``n`` reads: all from n up to 1 when Fresnel raises it
+    or the glossy footprint can sharpen it (any n > 0; the parallax correction is a scene setting
+    that changes without a re-bake, so the plan assumes it)."""
     if n is None:
         return set(MAP_NAMES)            # the specular lobe may blend down to the diffuse map at n = 0
     wanted = {name for name, weight in map_weights(n).items() if weight > 0}
-    if fresnel:                          # n' = n + (1 - n) f reaches every glossiness up to 1
+    # n' = n + (1 - n) f reaches every glossiness up to 1; so does a footprint narrowed towards 0
+    # (footprint_glossiness fades its narrowing out only at the diffuse map's lobe, n = 0)
+    if fresnel or n > 0:
         wanted.update(MAP_NAMES[min(MAP_NAMES.index(name) for name in wanted):])
     return wanted
 
