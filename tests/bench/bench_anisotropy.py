@@ -8,7 +8,7 @@ the tangent, r²·aspect across it, aspect = √(1 − 0.9 a); D and Smith G2 wi
 PlateLight: the four maps (Phong lobes), looked up with the look-up tilt either as one round lobe
 at the roughness's glossiness (before session 12) or as the shader does now (addon/ibl/anisotropy.py:
 five look-ups along the streak at the narrow axis's glossiness). PSNR over the sphere's pixels, peak
-= the truth's 99.5th percentile (as docs/bench/composite.md).
+= the HDRI's 90th percentile by solid angle (bench_lobes.display_peak, as docs/bench/composite.md).
 
 Run: `.venv/bin/python tests/bench/bench_anisotropy.py` (about 3 minutes on 2 cores); writes
 docs/bench/anisotropy.md."""
@@ -24,7 +24,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import reference  # noqa: E402
 import support  # noqa: E402,F401
-from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, psnr, sphere_view  # noqa: E402
+from bench_lobes import HDRIS, VIEW_AZIMUTHS, display_peak, lookups, psnr, sphere_view  # noqa: E402
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps  # noqa: E402
@@ -50,12 +50,13 @@ def mean_psnrs(env, roughness, amount, views, *shadings):
     the tangent circling Z."""
     aspect = float(anisotropy.aspect(amount))
     scores = [[] for _ in shadings]
+    peak = display_peak(env)
     for normals, view in views:
         tangents = reference.tangents_about_z(normals)
         want = reference.anisotropic_ggx(env, roughness ** 2 / aspect, roughness ** 2 * aspect,
                                          normals, tangents, view, TRUTH_HEIGHT)
         for score, shade in zip(scores, shadings):
-            score.append(psnr(shade(normals, tangents, view), want))
+            score.append(psnr(shade(normals, tangents, view), want, peak))
     return [float(np.mean(score)) for score in scores]
 
 

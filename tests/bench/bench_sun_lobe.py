@@ -8,8 +8,8 @@ the HDRI's texels (256 rows, tests/reference.py's brute force) integrated with P
 shader makes them (tilted, along the streak when anisotropic), reading either the four maps with
 the sun blurred in (the paper's maps; the default before session 13) or the sunless maps plus the
 sun through the lobe (the default now). HDRIs without a sun (courtyard) read the same maps both
-ways. PSNR over the sphere's pixels, peak = the truth's 99.5th percentile (as
-docs/bench/composite.md).
+ways. PSNR over the sphere's pixels, peak = the HDRI's 90th percentile by solid angle
+(bench_lobes.display_peak, as docs/bench/composite.md).
 
 Run: `.venv/bin/python tests/bench/bench_sun_lobe.py` (about 4 minutes on 2 cores); writes
 docs/bench/sun_lobe.md."""
