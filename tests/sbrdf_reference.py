@@ -21,6 +21,13 @@ def _dot(a, b):
     return np.sum(a * b, axis=-1, keepdims=True)
 
 
+def fresnel(p, cos_v):
+    """Eq 4 with Fresnel Peak c: f = c (1 - clamp(cos, 0, 1))^(1/phi - 1), phi clamped to >= 1e-4
+    (``p`` a parameter dict; c defaults to 1, the paper's)."""
+    phi = max(p["fresnel_falloff"], 1e-4)
+    return p.get("fresnel_peak", 1.0) * (1.0 - np.clip(cos_v, 0, 1)) ** (1.0 / phi - 1.0)
+
+
 def equirect_uv(d):
     d = _norm(d)
     u = np.arctan2(-d[..., 1], d[..., 0]) / (2 * np.pi) + 0.5
@@ -86,8 +93,7 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None):
     w = p["retro_reflection"]
     peak = (1 - w) * peak + w * R
     g = np.maximum(_dot(N, peak), 0.0)
-    phi = max(p["fresnel_falloff"], 1e-4)
-    f = p.get("fresnel_peak", 1.0) * (1.0 - np.clip(rn, 0, 1)) ** (1.0 / phi - 1.0)
+    f = fresnel(p, rn)
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
     amount = p.get("anisotropy", 0.0)
     narrow = anisotropy.narrow_glossiness(p["glossiness"], amount)

@@ -10,6 +10,7 @@ import pathlib
 import numpy as np
 import pytest
 
+import sbrdf_reference
 import support  # noqa: F401  (makes `platelight` this checkout)
 from platelight.addon.errors import PlateLightError
 from platelight.addon.material import json_io, principled, presets
@@ -150,7 +151,7 @@ def _multiscatter_albedo(mu, alpha, n=96):
 
 def _specular_weight(s, mus):
     """The SBRDF's specular weight rho_s + (1 - rho_s) f at cos ``mus`` (red channel)."""
-    return s.specular_albedo[0] + (1 - s.specular_albedo[0]) * s.fresnel_peak * (1 - mus) ** (1 / s.fresnel_falloff - 1)
+    return s.specular_albedo[0] + (1 - s.specular_albedo[0]) * sbrdf_reference.fresnel(dataclasses.asdict(s), mus)
 
 
 def test_dielectric_fresnel_knots_follow_the_ggx_albedo():

@@ -78,24 +78,27 @@ def glossiness_to_roughness(glossiness: float) -> float:
     return float(maps.glossiness_to_roughness(glossiness))
 
 
+def _metal_exponent(roughness: float) -> float:
+    return float(np.interp(roughness, _FALLOFF_ROUGHNESS, _FALLOFF_EXPONENT))
+
+
 def roughness_to_fresnel_falloff(roughness: float) -> float:
     """A metal's phi (its Fresnel Peak is 1)."""
-    return 1.0 / (1.0 + float(np.interp(roughness, _FALLOFF_ROUGHNESS, _FALLOFF_EXPONENT)))
+    return 1.0 / (1.0 + _metal_exponent(roughness))
 
 
 def dielectric_fresnel(roughness: float) -> tuple[float, float, float]:
-    """A dielectric's (phi, Fresnel Peak c, E(1) / F0) at this roughness."""
+    """A dielectric's (exponent k = 1/phi - 1, Fresnel Peak c, E(1) / F0) at this roughness."""
     knots = _DIELECTRIC_ROUGHNESS
-    exponent = float(np.interp(roughness, knots, _DIELECTRIC_EXPONENT))
-    return (1.0 / (1.0 + exponent), float(np.interp(roughness, knots, _DIELECTRIC_PEAK)),
-            float(np.interp(roughness, knots, _DIELECTRIC_HEAD_ON)))
+    return tuple(float(np.interp(roughness, knots, table))
+                 for table in (_DIELECTRIC_EXPONENT, _DIELECTRIC_PEAK, _DIELECTRIC_HEAD_ON))
 
 
 def fresnel_terms(roughness: float, metallic: float) -> tuple[float, float, float]:
     """(phi, Fresnel Peak, the factor on the dielectric's F0): a dielectric's and a metal's
     exponent and peak blended by metallic."""
-    phi_d, peak_d, head_on = dielectric_fresnel(roughness)
-    exponent = (1.0 - metallic) * (1.0 / phi_d - 1.0) + metallic * (1.0 / roughness_to_fresnel_falloff(roughness) - 1.0)
+    exponent_d, peak_d, head_on = dielectric_fresnel(roughness)
+    exponent = (1.0 - metallic) * exponent_d + metallic * _metal_exponent(roughness)
     return 1.0 / (1.0 + exponent), (1.0 - metallic) * peak_d + metallic, head_on
 
 

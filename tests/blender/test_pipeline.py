@@ -28,6 +28,7 @@ import sys
 import numpy as np
 import pytest
 
+from sbrdf_reference import fresnel
 import support
 from bake_scenes import material
 from platelight.addon.ibl.lobe_tilt import tilt_offset
@@ -93,7 +94,7 @@ def _sbrdf(maps, N, p):
     rn = np.sum(R * N, axis=-1, keepdims=True)
     peak = p["cx"] * (R - rn * N) + p["cz"] * rn * N
     g = np.maximum(np.sum(N * peak, axis=-1, keepdims=True), 0.0)
-    f = p.get("fresnel_peak", 1.0) * (1.0 - np.clip(rn, 0, 1)) ** (1.0 / max(p["fresnel_falloff"], 1e-4) - 1.0)
+    f = fresnel(p, rn)
     rho_s = np.asarray(p["specular_albedo"]) + (1 - np.asarray(p["specular_albedo"])) * f
     n2 = p["glossiness"] + (1 - p["glossiness"]) * f
     g2 = g + (1 - g) * f
