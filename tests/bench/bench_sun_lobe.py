@@ -53,19 +53,25 @@ def shaded(found, normals, tangents, view, roughness, amount, sun=None):
         roughness ** 2 * aspect, sun)
 
 
+def hdri_maps(name):
+    """A bundled HDRI and what the bake makes of it: (env, the four maps, its sun or None, the env
+    without its sun, the maps the shader reads with the sun lobe: sunless where the bake splits)."""
+    env = np.maximum(read_exr(bundled_hdris()[name]), 0).astype(np.float32)
+    full = maps.compute_maps(env, maps.MapSettings()).maps
+    sun, sunless_env = sun_lobe.split(env)
+    sunless = dict(full)
+    if sun is not None:
+        sunless.update(maps.compute_maps(sunless_env.astype(np.float32), maps.MapSettings(),
+                                         which=sun_lobe.SUNLESS_MAPS).maps)
+    return env, full, sun, sunless_env, sunless
+
+
 def main(out_dir: pathlib.Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     views = [sphere_view(a, pixels=PIXELS) for a in VIEW_AZIMUTHS]
     rows = []
     for name in HDRIS:
-        env = np.maximum(read_exr(bundled_hdris()[name]), 0).astype(np.float32)
-        full = maps.compute_maps(env, maps.MapSettings()).maps
-        sun, sunless_env = sun_lobe.split(env)
-        sunless = dict(full)
-        if sun is not None:
-            computed = maps.compute_maps(sunless_env.astype(np.float32), maps.MapSettings(),
-                                         which=sun_lobe.SUNLESS_MAPS).maps
-            sunless.update(computed)
+        env, full, sun, _, sunless = hdri_maps(name)
         for roughness, amount in MATERIALS:
             t0 = time.perf_counter()
             before, after = mean_psnrs(env, roughness, amount, views,

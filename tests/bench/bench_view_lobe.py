@@ -35,9 +35,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import support  # noqa: E402,F401
 from bench_anisotropy import mean_psnrs  # noqa: E402
 from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, sphere_view  # noqa: E402
-from bench_sun_lobe import shaded  # noqa: E402
-from platelight.addon.demo import bundled_hdris  # noqa: E402
-from platelight.addon.exr_io import read_exr  # noqa: E402
+from bench_sun_lobe import hdri_maps, shaded  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps, sh, sun_lobe  # noqa: E402
 from platelight.addon.ibl.equirect import dir_to_uv, sample_bilinear  # noqa: E402
 
@@ -50,18 +48,21 @@ TAP_SLOPE = 0.6                # the two look-ups' slope, in units of the missin
 
 
 def ladder_maps(env, sunless_env):
-    """The sunless ladder, rough to sharp: (roughness knots, maps). glossy1/2 GGX-prefiltered,
-    glossy3 the prototype's extra map; the mirror map keeps the sun (as the shader's)."""
+    """The sunless ladder, rough to sharp: (roughness knots, maps, seconds glossy3 took: its
+    SH analysis and synthesis, what the bake would add). glossy1/2 GGX-prefiltered, glossy3 the
+    prototype's extra map; the mirror map keeps the sun (as the shader's)."""
     source = sunless_env.astype(np.float32)
     contract = maps.compute_maps(source, maps.MapSettings(lobes="ggx"), which=("diffuse", "glossy1", "glossy2")).maps
+    t0 = time.perf_counter()
     alpha = LADDER_ROUGHNESS ** 2
     lmax = min(int(np.argmax(sh.ggx_lobe_factors(alpha, 255) < maps.GGX_LOBE_CUTOFF)), source.shape[0] - 1)
     coeffs = sh.project_exact(source, lmax)
     glossy3 = np.maximum(sh.synthesize(coeffs, LADDER_HEIGHT, sh.ggx_lobe_factors(alpha, lmax)), 0)
+    glossy3_seconds = time.perf_counter() - t0
     specular = maps.compute_maps(env.astype(np.float32), maps.MapSettings(), which=("specular",)).maps["specular"]
     knots = (maps.MAP_ROUGHNESS["diffuse"], maps.MAP_ROUGHNESS["glossy1"], maps.MAP_ROUGHNESS["glossy2"],
              LADDER_ROUGHNESS, 0.0)
-    return knots, [contract["diffuse"], contract["glossy1"], contract["glossy2"], glossy3, specular]
+    return knots, [contract["diffuse"], contract["glossy1"], contract["glossy2"], glossy3, specular], glossy3_seconds
 
 
 def ladder_weights(knots, roughness):
@@ -71,7 +72,7 @@ def ladder_weights(knots, roughness):
 
 
 def ladder_lookup(ladder, roughness, directions):
-    knots, images = ladder
+    knots, images, _ = ladder
     u, v = dir_to_uv(directions)
     weights = ladder_weights(knots, np.broadcast_to(roughness, directions.shape[:-1]))
     return sum(w[..., None] * sample_bilinear(image, u, v) for w, image in zip(weights, images) if w.max() > 0)
@@ -106,13 +107,7 @@ def main(out_dir: pathlib.Path) -> None:
     views = [sphere_view(a, pixels=PIXELS) for a in VIEW_AZIMUTHS]
     rows = []
     for name in HDRIS:
-        env = np.maximum(read_exr(bundled_hdris()[name]), 0).astype(np.float32)
-        full = maps.compute_maps(env, maps.MapSettings()).maps
-        sun, sunless_env = sun_lobe.split(env)
-        sunless = dict(full)
-        if sun is not None:
-            sunless.update(maps.compute_maps(sunless_env.astype(np.float32), maps.MapSettings(),
-                                             which=sun_lobe.SUNLESS_MAPS).maps)
+        env, _, sun, sunless_env, sunless = hdri_maps(name)
         ladder = ladder_maps(env, sunless_env if sun is not None else env)
         for roughness in ROUGHNESS:
             t0 = time.perf_counter()
@@ -121,7 +116,7 @@ def main(out_dir: pathlib.Path) -> None:
                 lambda n, t, v: shaded(sunless, n, t, v, roughness, 0.0, sun),
                 lambda n, t, v: ladder_shaded(ladder, n, t, v, roughness, sun, False),
                 lambda n, t, v: ladder_shaded(ladder, n, t, v, roughness, sun, True))
-            rows.append((name, roughness, *scores))
+            rows.append((name, roughness, *scores, ladder[2]))
             print(f"{name:10s} r {roughness:.2f}  default {scores[0]:6.2f}  ladder {scores[1]:6.2f}  "
                   f"ladder+view {scores[2]:6.2f} dB  ({time.perf_counter() - t0:.0f} s)", flush=True)
     write_report(out_dir / "view_lobe.md", rows)
@@ -132,11 +127,15 @@ def write_report(path, rows):
         "# A view-dependent glossy look-up, prototyped (issue 11)", "",
         " ".join(__doc__.split("\n\n")[1].split()), "", " ".join(__doc__.split("\n\n")[2].split()), "",
         "Produced by `tests/bench/bench_view_lobe.py`.", "",
-        "| HDRI | roughness | default (dB) | + glossy3 ladder | + view-dependent look-ups | gain |",
-        "|---|---:|---:|---:|---:|---:|",
+        "Cost: the default reads two maps per shading point (the glossiness's neighbours), the prototype four "
+        "(two in each look-up); the bake adds glossy3, whose numpy time (SH analysis of the HDRI at the degree its "
+        "lobe needs, synthesis at 128 rows) is the last column.", "",
+        "| HDRI | roughness | default (dB) | + glossy3 ladder | + view-dependent look-ups | gain | glossy3 (s) |",
+        "|---|---:|---:|---:|---:|---:|---:|",
     ]
-    for name, roughness, default, ladder, view in rows:
-        lines.append(f"| {name} | {roughness:.2f} | {default:.2f} | {ladder:.2f} | {view:.2f} | {view - default:+.2f} |")
+    for name, roughness, default, ladder, view, seconds in rows:
+        lines.append(f"| {name} | {roughness:.2f} | {default:.2f} | {ladder:.2f} | {view:.2f} | {view - default:+.2f} "
+                     f"| {seconds:.1f} |")
     gains = np.array([r[4] - r[2] for r in rows])
     lines += ["", f"Mean gain of the view-dependent look-ups over the default: {gains.mean():+.2f} dB "
               f"(range {gains.min():+.2f} to {gains.max():+.2f}).", ""]
