@@ -43,7 +43,7 @@ ROUGHNESS = (0.1, 0.2, 0.3, 0.45, 0.6)
 PIXELS = 28
 LADDER_ROUGHNESS = 0.18        # glossy3, between glossy2 (0.27) and the mirror map
 LADDER_HEIGHT = 128
-MU_FLOOR = 0.45                # below it the lobe stops narrowing (brute-force moments: r'/r 0.67-0.78 at mu 0.2)
+MU_FLOOR = 0.45                # below it the lobe stops narrowing (brute-force moments: r'/r 0.67-0.82 at mu 0.2)
 TAP_SLOPE = 0.6                # the two look-ups' slope, in units of the missing slope width
 
 
