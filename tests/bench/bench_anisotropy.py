@@ -24,7 +24,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import reference  # noqa: E402
 import support  # noqa: E402,F401
-from bench_lobes import HDRIS, VIEW_AZIMUTHS, display_peak, lookups, psnr, sphere_view  # noqa: E402
+from bench_lobes import HDRIS, VIEW_AZIMUTHS, display_peak, gain_summary, lookups, psnr, sphere_view  # noqa: E402
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps  # noqa: E402
@@ -91,9 +91,7 @@ def write_report(path, rows):
     for name, roughness, amount, round_db, streak_db in rows:
         lines.append(f"| {name} | {roughness:.2f} | {amount:.1f} | {round_db:.2f} | {streak_db:.2f} | "
                      f"{streak_db - round_db:+.2f} |")
-    gains = np.array([r[4] - r[3] for r in rows])
-    lines += ["", f"Mean gain over all rows: {gains.mean():+.2f} dB (range {gains.min():+.2f} to "
-              f"{gains.max():+.2f}).", ""]
+    lines += ["", f"Mean gain over all rows: {gain_summary([r[4] - r[3] for r in rows])}.", ""]
     path.write_text("\n".join(lines))
 
 

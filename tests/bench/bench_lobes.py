@@ -81,6 +81,12 @@ def psnr(image, truth, peak):
     return float(10 * np.log10(peak ** 2 / np.mean(error ** 2)))
 
 
+def gain_summary(gains) -> str:
+    """A benchmark report's summary of per-row gains (dB): their mean and range."""
+    gains = np.asarray(gains)
+    return f"{gains.mean():+.2f} dB (range {gains.min():+.2f} to {gains.max():+.2f})"
+
+
 def main(out_dir: pathlib.Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     views = [sphere_view(a) for a in VIEW_AZIMUTHS]
@@ -123,8 +129,7 @@ def write_report(path, rows):
                      f"{scores[('ggx', True)]:.2f} |")
 
     def mean_gain(a, b):
-        gains = np.array([s[a] - s[b] for *_, s in rows])
-        return f"{gains.mean():+.2f} dB (range {gains.min():+.2f} to {gains.max():+.2f})"
+        return gain_summary([s[a] - s[b] for *_, s in rows])
     lines += ["", "Mean gain over all rows: GGX lobes over Phong, along R: "
               f"{mean_gain(('ggx', False), ('phong', False))}; the tilt, Phong lobes: "
               f"{mean_gain(('phong', True), ('phong', False))}; the tilt, GGX lobes: "

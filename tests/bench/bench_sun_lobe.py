@@ -25,7 +25,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import support  # noqa: E402,F401
 from bench_anisotropy import along_streak, mean_psnrs  # noqa: E402
-from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, sphere_view  # noqa: E402
+from bench_lobes import HDRIS, VIEW_AZIMUTHS, gain_summary, lookups, sphere_view  # noqa: E402
 from platelight.addon.demo import bundled_hdris  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps, sun_lobe  # noqa: E402
@@ -94,10 +94,9 @@ def write_report(path, rows):
     for name, found, roughness, amount, before, after in rows:
         lines.append(f"| {name} | {'yes' if found else 'no'} | {roughness:.2f} | {amount:.1f} | {before:.2f} | "
                      f"{after:.2f} | {after - before:+.2f} |")
-    gains = np.array([r[5] - r[4] for r in rows if r[1]])
-    if len(gains):
-        lines += ["", f"Mean gain where a sun was found: {gains.mean():+.2f} dB (range {gains.min():+.2f} "
-                  f"to {gains.max():+.2f}).", ""]
+    gains = [r[5] - r[4] for r in rows if r[1]]
+    if gains:
+        lines += ["", f"Mean gain where a sun was found: {gain_summary(gains)}.", ""]
     path.write_text("\n".join(lines))
 
 

@@ -34,7 +34,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import support  # noqa: E402,F401
 from bench_anisotropy import mean_psnrs  # noqa: E402
-from bench_lobes import HDRIS, VIEW_AZIMUTHS, lookups, sphere_view  # noqa: E402
+from bench_lobes import HDRIS, VIEW_AZIMUTHS, gain_summary, lookups, sphere_view  # noqa: E402
 from bench_sun_lobe import hdri_maps, shaded  # noqa: E402
 from platelight.addon.ibl import anisotropy, maps, sh, sun_lobe  # noqa: E402
 from platelight.addon.ibl.equirect import dir_to_uv, sample_bilinear  # noqa: E402
@@ -136,9 +136,8 @@ def write_report(path, rows):
     for name, roughness, default, ladder, view, seconds in rows:
         lines.append(f"| {name} | {roughness:.2f} | {default:.2f} | {ladder:.2f} | {view:.2f} | {view - default:+.2f} "
                      f"| {seconds:.1f} |")
-    gains = np.array([r[4] - r[2] for r in rows])
-    lines += ["", f"Mean gain of the view-dependent look-ups over the default: {gains.mean():+.2f} dB "
-              f"(range {gains.min():+.2f} to {gains.max():+.2f}).", ""]
+    lines += ["", "Mean gain of the view-dependent look-ups over the default: "
+              f"{gain_summary([r[4] - r[2] for r in rows])}.", ""]
     path.write_text("\n".join(lines))
 
 
