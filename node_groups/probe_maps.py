@@ -21,30 +21,33 @@ import bpy
 
 from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
-from ..addon.ibl import irradiance_grid, sun_lobe
+from ..addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ..addon.ibl.anisotropy import TAP_SLOPES
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
-from ..addon.ibl.maps import GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, map_filename
+from ..addon.ibl.maps import (GLOSSINESS_KNOTS, GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, ROUGHNESS_KNOTS,
+                              map_filename)
 from ._build import VERSION_KEY, Graph, float_curve, io_nodes, sync_interface, tent_weights
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 8                          # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 9                          # 3: parallax-corrected specular look-ups (distance map)
                                      # 4: diffuse look-ups from the irradiance grid
                                      # 5: the grid's atlas read by Environment Textures (EEVEE)
                                      # 6: glossy look-ups narrowed by their footprint
                                      # 7: anisotropic look-ups along the Specular Spread
                                      # 8: the sun through the lobe, the other maps sunless
+                                     # 9: the view-dependent ladder (glossy3, narrowed look-ups)
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
 SUN_NODES = (names.SUN_DIRECTION_NODE, names.SUN_COLOR_NODE, names.SUN_ANGLE_NODE)
 GRID_NODES = (names.DIFFUSE_PARALLAX_NODE, names.GRID_LO_NODE, names.GRID_SCALE_NODE,
               names.GRID_POINTS_NODE, names.GRID_HEIGHT_NODE)
 SEQUENCE_FRAMES = 1048574            # ImageUser.frame_duration's maximum: every frame maps to its file
-# What the specular look-ups read along the streak: the maps after the diffuse one (which they read
-# once, split by the lobe's reflectance), the glossy ones sunless, the mirror map with its sun.
+# What the specular look-ups read along the streak: the ladder's maps after the diffuse one (which
+# they read once, split by the lobe's reflectance), the glossy ones sunless (or the ladder's rungs,
+# which are sunless where the probe has a sun), glossy3 a rung only, the mirror map with its sun.
 SUNLESS_NAMES = {sun_lobe.sunless_name(name): name for name in sun_lobe.SUNLESS_MAPS}
-STREAK_MAPS = tuple(sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n for n in MAP_NAMES[1:])
+STREAK_MAPS = tuple(sun_lobe.sunless_name(n) if n in sun_lobe.SUNLESS_MAPS else n for n in view_lobe.LADDER[1:])
 OUTPUTS = (("Shader", "NodeSocketShader"), ("Lr", "NodeSocketColor"),
            ("Diffuse Term", "NodeSocketColor"), ("Specular Term", "NodeSocketColor"),
            ("Refraction Term", "NodeSocketColor"))
@@ -131,12 +134,16 @@ def bind_images(tree):
     frame = first if kind == "sequence" else None
     record = read_record(path, frame) if kind != "missing" else {}
     sun = _steady_sun(path, record, kind == "sequence") if kind != "missing" else None
+    ladder = _ladder_on(path, record, frame, sun) if kind != "missing" else False
     for node in tree.nodes:
         name = node.get("platelight_map")
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
             continue
         if kind == "missing":
             filename = None
+        elif name == view_lobe.GLOSSY3 or (ladder and SUNLESS_NAMES.get(name) in view_lobe.RUNGS):
+            # glossy3 exists only as a rung; glossy1 and glossy2 read their rungs with the ladder on
+            filename = view_lobe.rung_filename(SUNLESS_NAMES.get(name, name), frame) if ladder else None
         elif name in SUNLESS_NAMES:
             # without a sun the sunless look-ups read the maps themselves (the sun term is 0)
             base = SUNLESS_NAMES[name]
@@ -167,6 +174,9 @@ def bind_images(tree):
             user.use_auto_refresh = True
     tree["platelight_maps"] = kind
     _bind_sun(tree, sun)
+    view_switch = tree.nodes.get(names.VIEW_LOBE_NODE)
+    if view_switch is not None:
+        view_switch.outputs[0].default_value = 1.0 if ladder else 0.0
     _bind_parallax(tree, record)
     _bind_grid(tree, record, moving=kind == "sequence" and _grid_moves(path))
 
@@ -221,6 +231,21 @@ def _steady_sun(path, record, sequence):
                                      and np.allclose(other.rgb, sun.rgb, rtol=1e-3, atol=1e-6)):
                 return None
     return sun
+
+
+def _ladder_on(path, record, frame, sun) -> bool:
+    """Does the group read the view-dependent ladder? When the scene asks for it (Glossy Lobes,
+    view_lobe.in_use), the bake wrote every rung of this frame, and the rungs lack the sun exactly
+    when the group adds it through the lobe (a ladder baked sunless, read without the sun term,
+    would lose the sun; one baked with it, read with the term, would show it twice)."""
+    scene = getattr(bpy.context, "scene", None)
+    settings = getattr(scene, "platelight", None)
+    if settings is None or not view_lobe.in_use(settings.glossy_lobes, settings.sampling):
+        return False
+    if not all(os.path.isfile(os.path.join(path, f)) for f in view_lobe.ladder_filenames(frame)):
+        return False
+    sunless = view_lobe.record_sunless(record)
+    return sunless is not None and sunless == (sun is not None)
 
 
 def _bind_sun(tree, sun):
@@ -418,6 +443,44 @@ def _footprint_glossiness(g, glossiness, ratio):
     return g.math("DIVIDE", narrowed, float(GLOSSINESS_SCALE))
 
 
+def _view_lobe(g, inp, roughness, on):
+    """view_lobe.ladder_weights at view_lobe.narrowed_roughness, and view_lobe.spread times
+    TAP_SCALE, in nodes: (the LADDER maps' weights, the taps' spread vector). ``on`` (0/1, set by
+    the binding) off: the roughness is not narrowed, the spread is 0 and glossy3's weight folds
+    into its neighbours, which is the four maps' rule exactly."""
+    n, view = inp["Diffuse Direction"], inp["Lobe View"]
+    mu = g.math("MINIMUM", g.math("MAXIMUM", g.vmath("DOT_PRODUCT", n, view), 0.0), 1.0)
+    floored = g.math("MAXIMUM", mu, view_lobe.MU_FLOOR)
+    # view_lobe.view_weight: (alpha_b / alpha_t)^2, 1 for a round lobe
+    alphas = g.node("ShaderNodeSeparateXYZ")
+    g.link(inp["Lobe Alphas"], alphas.inputs["Vector"])
+    ratio = g.math("DIVIDE", alphas.outputs["Y"], g.math("MAXIMUM", alphas.outputs["X"], 1e-12))
+    amount = g.math("MULTIPLY", on, g.math("MULTIPLY", ratio, ratio))
+    factor = g.math("MULTIPLY_ADD", amount, g.math("SUBTRACT", g.math("SQRT", floored), 1.0), 1.0)
+    narrow = g.math("MULTIPLY", roughness, factor)
+    # the ladder's position (0 = diffuse ... 4 = mirror): exact, piecewise linear in roughness
+    knots = view_lobe.LADDER_ROUGHNESS
+    position = 0.0
+    for k in range(len(knots) - 1):
+        part = g.math("DIVIDE", g.math("SUBTRACT", knots[k], narrow), knots[k] - knots[k + 1])
+        position = g.math("ADD", position, g.math("MINIMUM", g.math("MAXIMUM", part, 0.0), 1.0))
+    weights = [g.math("MAXIMUM", g.math("SUBTRACT", 1.0, g.math("ABSOLUTE", g.math("SUBTRACT", position, float(k)))),
+                      0.0) for k in range(len(knots))]
+    third = view_lobe.LADDER.index(view_lobe.GLOSSY3)
+    folded = g.math("MULTIPLY", weights[third], g.math("SUBTRACT", 1.0, on))
+    weights[third - 1] = g.math("MULTIPLY_ADD", folded, view_lobe.fold_share(), weights[third - 1])
+    weights[third + 1] = g.math("MULTIPLY_ADD", folded, 1.0 - view_lobe.fold_share(), weights[third + 1])
+    weights[third] = g.math("MULTIPLY", weights[third], on)
+    # 2 alpha sqrt(1 - mu'^2) (sqrt(1 - mu^2) N + mu T), T the view's part along the surface
+    in_plane = g.vmath("NORMALIZE", g.vmath("SUBTRACT", view, g.vmath("SCALE", n, scale=mu)))
+    direction = g.vmath("ADD", g.vmath("SCALE", n, scale=g.math("SQRT", g.math("SUBTRACT", 1.0, g.math("MULTIPLY", mu, mu)))),
+                        g.vmath("SCALE", in_plane, scale=mu))
+    missing = g.math("SQRT", g.math("SUBTRACT", 1.0, g.math("MULTIPLY", floored, floored)))
+    size = g.math("MULTIPLY", g.math("MULTIPLY", g.math("MULTIPLY", roughness, roughness), missing),
+                  2.0 * view_lobe.TAP_SCALE)
+    return weights, g.vmath("SCALE", direction, scale=g.math("MULTIPLY", size, amount))
+
+
 def _irradiance_grid(g, direction):
     """The diffuse map seen from the shading point: the eight maps of the irradiance grid around
     it (addon/ibl/irradiance_grid.py: trilinear, atlas_uv) read along ``direction``."""
@@ -566,14 +629,17 @@ def _build(tree):
     specular_direction, footprint = _parallax(g, inp["Specular Direction"])
     # The maps are blurred as seen from the centre; a lobe meeting a surface near the shading
     # point covers less of it (docs/decisions.md, "Glossy footprint").
-    specular_weights = tent_weights(g, _footprint_glossiness(g, inp["Map Glossiness"], footprint))
+    roughness = float_curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS,
+                            _footprint_glossiness(g, inp["Map Glossiness"], footprint))
+    view_on = _named_value(g, names.VIEW_LOBE_NODE, 0.0)
+    specular_weights, view_spread = _view_lobe(g, inp, roughness, view_on)
     # An anisotropic lobe: the maps read along the streak (addon/ibl/anisotropy.py), the same
-    # expression for every tap, so a round lobe's zero spread folds them into one look-up where
-    # the renderer folds constants (Cycles).
+    # expression for every tap; a round lobe seen from an angle: along the plane of incidence
+    # (addon/ibl/view_lobe.py).
+    spread = g.vmath("ADD", inp["Specular Spread"], view_spread)
     streak = None
     for slope in TAP_SLOPES:
-        tap = g.vmath("NORMALIZE", g.vmath("ADD", specular_direction,
-                                           g.vmath("SCALE", inp["Specular Spread"], scale=slope)))
+        tap = g.vmath("NORMALIZE", g.vmath("ADD", specular_direction, g.vmath("SCALE", spread, scale=slope)))
         term = blended(tap, specular_weights[1:], STREAK_MAPS)
         streak = term if streak is None else g.vmath("ADD", streak, term)
     streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
@@ -584,11 +650,11 @@ def _build(tree):
     sunless_part = g.math("MINIMUM", g.math("MAXIMUM", reflectance, 0.0), 1.0)
     rough_map = g.mix("VECTOR", sunless_part, env("diffuse", specular_direction),
                       env(sun_lobe.sunless_name("diffuse"), specular_direction))
-    streak = g.vmath("ADD", streak, g.vmath("SCALE", rough_map, scale=specular_weights[MAP_NAMES.index("diffuse")]))
-    # The sun the sunless maps lack, through the lobe, for their share (sun_lobe.sun_share).
-    sun_share = g.math("MULTIPLY_ADD", specular_weights[MAP_NAMES.index("diffuse")], sunless_part,
-                       g.math("ADD", specular_weights[MAP_NAMES.index("glossy1")],
-                              specular_weights[MAP_NAMES.index("glossy2")]))
+    streak = g.vmath("ADD", streak, g.vmath("SCALE", rough_map, scale=specular_weights[0]))
+    # The sun the sunless maps lack, through the lobe, for their share (view_lobe.sun_share).
+    rungs = [specular_weights[view_lobe.LADDER.index(name)] for name in view_lobe.RUNGS]
+    sun_share = g.math("MULTIPLY_ADD", specular_weights[0], sunless_part,
+                       g.math("ADD", g.math("ADD", rungs[0], rungs[1]), rungs[2]))
     streak = g.vmath("ADD", streak, g.vmath("SCALE", _sun_highlight(g, inp), scale=sun_share))
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], streak)
     refraction_weights = tent_weights(g, inp["Map Glossiness"])

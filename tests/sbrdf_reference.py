@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from platelight.addon.ibl import anisotropy, sun_lobe
-from platelight.addon.ibl.maps import glossiness_to_roughness, tent_weights
+from platelight.addon.ibl import anisotropy, sun_lobe, view_lobe
+from platelight.addon.ibl.maps import glossiness_to_roughness
 from platelight.addon.ibl.lobe_tilt import tilt_offset
 
 ORDER = ("diffuse", "glossy1", "glossy2", "specular")
@@ -75,11 +75,12 @@ def refract(i, n, eta):
     return np.where(k < 0, 0.0, t)
 
 
-def sbrdf(P, view, maps, p, sun=None, sunless=None):
+def sbrdf(P, view, maps, p, sun=None, sunless=None, rungs=None):
     """Lr per point. P: (..., 3) object-space positions on a unit sphere at the origin (the
     shading normal is P/|P|, the tangent circles the object Z axis); view: surface->viewer.
     ``sun`` (a lights.DirectionalLight) and ``sunless`` (the sunless maps by name): the specular
-    look-ups read those maps and add the sun through the lobe (addon/ibl/sun_lobe.py)."""
+    look-ups read those maps and add the sun through the lobe (addon/ibl/sun_lobe.py). ``rungs``
+    (view_lobe.RUNGS by name): the view-dependent ladder's look-ups (addon/ibl/view_lobe.py)."""
     N = _norm(P)
     R = np.broadcast_to(_norm(view), N.shape)
     t0 = np.stack([-P[..., 1], P[..., 0], np.zeros(P.shape[:-1])], axis=-1)
@@ -112,13 +113,28 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None):
     spec_dir = _norm(spec_dir + (1 - paper) * tilt * N)
     # an anisotropic lobe: the maps read along the streak, narrowing with the Fresnel glossiness
     slope = anisotropy.streak_slope(p["glossiness"], amount) * (1 - f[..., 0])
-    taps = anisotropy.tap_directions(spec_dir, anisotropy.spread(N, Tr, R, slope))
+    streak = anisotropy.spread(N, Tr, R, slope)
     sunless = sunless or {}
     specular_maps = dict(maps, **{k: v for k, v in sunless.items() if k != "diffuse"})
+    peak_unit = _norm(peak)
+    lobe_view = 2 * _dot(N, peak_unit) * N - peak_unit
+    if rungs is None:
+        weights = view_lobe.ladder_weights(glossiness_to_roughness(n2[..., 0]), with_glossy3=False)
+    else:
+        # the ladder at the narrowed roughness, the taps spread along the plane of incidence too
+        roughness = glossiness_to_roughness(n2[..., 0])
+        mu = np.clip(_dot(N, lobe_view)[..., 0], 0.0, 1.0)
+        aspect = anisotropy.aspect(amount)
+        weight = view_lobe.view_weight(1.0 / aspect, aspect)
+        weights = view_lobe.ladder_weights(view_lobe.narrowed_roughness(roughness, mu, weight))
+        streak = streak + view_lobe.spread(N, lobe_view, roughness ** 2) * view_lobe.TAP_SCALE * weight
+        specular_maps = dict(specular_maps, **rungs)
+    taps = anisotropy.tap_directions(spec_dir, streak)
     # the diffuse map read once, along the streak's centre (the probe group does the same)
-    w_d = np.maximum(0.0, 1.0 - np.abs(np.clip(n2, 0, 1) * 3.0))
-    specular = sum(blend(specular_maps, d, n2) - w_d * bilinear(maps["diffuse"], d) for d in taps) / len(taps) \
-        + w_d * bilinear(maps["diffuse"], spec_dir)
+    w_d = weights[0][..., None]
+    specular = sum(sum(w[..., None] * bilinear(specular_maps[name], d)
+                       for name, w in zip(view_lobe.LADDER[1:], weights[1:]) if name in specular_maps)
+                   for d in taps) / len(taps) + w_d * bilinear(maps["diffuse"], spec_dir)
     if "diffuse" in sunless:
         # the diffuse map read sunless in proportion to the lobe's mean reflectance
         part = np.clip(np.mean(rho_s * g2, axis=-1, keepdims=True), 0.0, 1.0)
@@ -127,9 +143,7 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None):
         # GGX of the Fresnel-sharpened glossiness, seen from the view whose mirror is the peak
         alpha = glossiness_to_roughness(p["glossiness"] + (1 - p["glossiness"]) * f[..., 0]) ** 2
         aspect = anisotropy.aspect(amount)
-        peak_unit = _norm(peak)
-        lobe_view = 2 * _dot(N, peak_unit) * N - peak_unit
-        share = sun_lobe.sun_share(n2[..., 0], rho_s * g2)
+        share = view_lobe.sun_share(weights, rho_s * g2)
         specular = specular + share[..., None] * sun_lobe.highlight(N, Tr, lobe_view, alpha / aspect,
                                                                     alpha * aspect, sun, rho_s * g2)
     lr = lr + rho_s * g2 * specular

@@ -178,14 +178,19 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
     )
     glossy_lobes: EnumProperty(
         name="Glossy Lobes",
-        description="The lobes the glossy maps are blurred with (exact sampling; the paper's "
-        "sampling keeps the paper's Phong lobes)",
+        description="The lobes the glossy maps are blurred with, and how the shader reads them "
+        "(exact sampling; the paper's sampling keeps the paper's Phong lobes and four maps; "
+        "switching it makes the probes stale)",
         items=(
             ("phong", "Phong", "The paper's normalised Phong lobes, cos^8 and cos^64"),
             ("ggx", "GGX", "The GGX reflection lobe of each map's roughness, as Cycles' Principled "
              "BSDF reflects light (more light from around a bright sun)"),
+            ("view", "View-Dependent GGX", "The four maps keep the paper's Phong lobes; the glossy "
+             "look-ups read a ladder of GGX maps with a fifth, sharper one, narrowed across the "
+             "plane of incidence as the view grazes, as a real glossy lobe does (the most accurate)"),
         ),
-        default="phong",
+        default="view",
+        update=lambda self, context: _parallax_changed(self, context),
     )
 
 

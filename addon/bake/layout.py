@@ -14,6 +14,7 @@ from ..ibl.distance import distance_filename
 from ..ibl.irradiance_grid import grid_filename
 from ..ibl.maps import MAP_NAMES, map_filename
 from ..ibl.sun_lobe import SUNLESS_MAPS, sunless_filename
+from ..ibl.view_lobe import ladder_filenames
 
 WORLD_FOLDER = "_world"
 DEFAULT_MAPS_DIR = "//platelight_maps"   # next to the .blend (scene.platelight.maps_dir's default)
@@ -42,9 +43,10 @@ def record_filename(frame: int | None) -> str:
 
 def lookup_filenames(frame: int | None) -> list[str]:
     """The files of a frame that the probe group reads beside the four maps: the parallax
-    look-ups' distance map and irradiance grid, and the sunless maps (each present only when
-    the bake wanted it)."""
-    return [distance_filename(frame), grid_filename(frame)] + [sunless_filename(n, frame) for n in SUNLESS_MAPS]
+    look-ups' distance map and irradiance grid, the sunless maps and the view-dependent ladder's
+    rungs (each present only when the bake wanted it)."""
+    return ([distance_filename(frame), grid_filename(frame)] + [sunless_filename(n, frame) for n in SUNLESS_MAPS]
+            + ladder_filenames(frame))
 
 
 def read_record(folder: str, frame: int | None) -> dict:

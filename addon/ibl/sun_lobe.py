@@ -94,16 +94,24 @@ def split(env: np.ndarray, sun: lights.SunSettings | None = None):
     return light, sunless
 
 
-def bake_sunless(folder: str, env: np.ndarray, settings: MapSettings, maps, frame: int | None = None) -> dict:
+def bake_source(env: np.ndarray) -> np.ndarray:
+    """The probe as the split (and view_lobe's rungs) read it: finite, non-negative, RGB, at most
+    SPLIT_HEIGHT rows (energy kept per texel block)."""
+    env = np.asarray(env)[..., :3]
+    env = np.where(np.isfinite(env), np.maximum(env, 0.0), 0.0)
+    return downsample_area(env, SPLIT_HEIGHT) if env.shape[0] > SPLIT_HEIGHT else env
+
+
+def bake_sunless(folder: str, env: np.ndarray, settings: MapSettings, maps, frame: int | None = None,
+                 found=None) -> dict:
     """Beside a bake's maps: the sunless maps of those of SUNLESS_MAPS it has, and the record's
-    entry for the sun ({} without a sun, then no sunless file is left behind)."""
+    entry for the sun ({} without a sun, then no sunless file is left behind). ``found``: the
+    split of bake_source(env) when the caller made it already."""
     wanted = [name for name in SUNLESS_MAPS if name in maps]
-    if wanted:
-        env = np.asarray(env)[..., :3]
-        env = np.where(np.isfinite(env), np.maximum(env, 0.0), 0.0)
-        if env.shape[0] > SPLIT_HEIGHT:
-            env = downsample_area(env, SPLIT_HEIGHT)     # energy kept per texel block
-    light, sunless = split(env) if wanted else (None, None)
+    if not wanted:
+        light, sunless = None, None
+    else:
+        light, sunless = found if found is not None else split(bake_source(env))
     if light is None:
         remove_sunless(folder, frame)
         return {}

@@ -23,7 +23,7 @@ from ...addon.bake.frames import sample_frames
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
 from ...addon.ibl import distance as distance_maps
-from ...addon.ibl import irradiance_grid, sun_lobe
+from ...addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, MapSettings, compute_maps,
                                prepare_environment, write_maps)
 from ..common import GEOMETRY_TYPES
@@ -258,7 +258,7 @@ class ProbeBake:
         if sized_height:
             heights["specular"] = sized_height
         return MapSettings(sampling=self.scene.platelight.sampling, heights=heights,
-                           lobes=self.scene.platelight.glossy_lobes)
+                           lobes=view_lobe.contract_lobes(self.scene.platelight.glossy_lobes))
 
     # ---- hashing
     def probe_hash(self, ob, origin, maps, owner, grid):
@@ -319,7 +319,7 @@ class ProbeBake:
             result = compute_maps(env, settings, which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
-            sun = self._bake_sunless(folder, env, settings, maps, key_frame)
+            sun = self._bake_lookup_maps(folder, env, settings, maps, key_frame)
             grid = {}
             if wants_distance:
                 points = distance_render.surface_points(ob, self.context.evaluated_depsgraph_get())
@@ -350,13 +350,32 @@ class ProbeBake:
         ob.platelight.probe_hash = digest
         ob.platelight.probe_status = status if self.static else f"{status} (frames {self.frames[0]}-{self.frames[-1]})"
 
-    def _bake_sunless(self, folder, env, settings, maps, key_frame):
-        """The sunless maps and the record's sun (sun_lobe.bake_sunless) when the scene shades the
-        sun through the lobe (Sun Highlight); without it, the paper's files alone."""
-        if self.scene.platelight.probe_sun_lobe:
-            return sun_lobe.bake_sunless(folder, env, settings, maps, key_frame)
-        sun_lobe.remove_sunless(folder, key_frame)
-        return {}
+    def _bake_lookup_maps(self, folder, env, settings, maps, key_frame):
+        """The files the probe group reads beside the maps, each only when the scene asks for it:
+        the sunless maps and the record's sun (Sun Highlight, sun_lobe.bake_sunless), and the
+        view-dependent ladder's rungs (Glossy Lobes, view_lobe.bake), made without the sun where
+        the bake split one. Returns the record's entries; without either, the paper's files alone."""
+        plate = self.scene.platelight
+        ladder = view_lobe.in_use(plate.glossy_lobes, plate.sampling) and view_lobe.wanted(maps)
+        record = {}
+        found = None
+        if plate.probe_sun_lobe or ladder:
+            source = sun_lobe.bake_source(env)
+            found = sun_lobe.split(source) if plate.probe_sun_lobe else (None, source)
+        if plate.probe_sun_lobe:
+            record.update(sun_lobe.bake_sunless(folder, env, settings, maps, key_frame, found))
+        else:
+            sun_lobe.remove_sunless(folder, key_frame)
+        if ladder:
+            # the rungs lose the sun exactly when the record keeps it (the shader adds it back)
+            sunless = sun_lobe.RECORD_KEY in record
+            rung_source = found[1] if sunless else source
+            probe_rows = int(settings.heights.get("specular", DEFAULT_HEIGHTS["specular"]))
+            heights = {name: min(height, probe_rows) for name, height in view_lobe.RUNG_HEIGHTS.items()}
+            record.update(view_lobe.bake(folder, rung_source, heights, key_frame, sunless))
+        else:
+            view_lobe.remove(folder, key_frame)
+        return record
 
     def _write_irradiance_grid(self, env, points, origin, settings, folder, key_frame):
         """The diffuse maps of a grid of points over the object's bounding box, seen through its
@@ -405,7 +424,7 @@ class ProbeBake:
             result = compute_maps(env, settings, which=MAP_NAMES)
             self.warnings.extend(f"world: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=None)
-            sun = self._bake_sunless(folder, env, settings, MAP_NAMES, None)
+            sun = self._bake_lookup_maps(folder, env, settings, MAP_NAMES, None)
             layout.write_record(folder, None, digest, MAP_NAMES, source=source or "render", **sun)
             self.world_baked = True
         if scene.platelight.pack_maps:

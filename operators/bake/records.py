@@ -15,6 +15,7 @@ from ...addon.bake.needs import OWNER_INDIRECT
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
 from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
 from ...addon.ibl.maps import MapSettings, map_filename
+from ...addon.ibl import view_lobe
 from ...addon.ibl.sun_lobe import VERSION as SUN_LOBE_VERSION
 
 
@@ -35,7 +36,7 @@ def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_heig
     return content_hash({
         **sized, **indirect, **with_grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
-        "distance": DISTANCE_VERSION, **_sun_key(scene),
+        "distance": DISTANCE_VERSION, **_sun_key(scene), **_ladder_key(scene),
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
                      settings.probe_fast_world, settings.probe_owner_shadows,
                      settings.probe_distance],
@@ -58,6 +59,12 @@ def _sun_key(scene):
     return {"sun_lobe": SUN_LOBE_VERSION} if scene.platelight.probe_sun_lobe else {}
 
 
+def _ladder_key(scene):
+    """A bake with the view-dependent ladder (view_lobe) writes its rungs; one without hashes as before."""
+    settings = scene.platelight
+    return {"view_lobe": view_lobe.VERSION} if view_lobe.in_use(settings.glossy_lobes, settings.sampling) else {}
+
+
 def world_maps_hash(scene, world_digest, image, map_settings):
     """The hash of the world's own maps: from ``image`` (a WorldImage: an EXR, its strength and
     rotation) or, when None, from a probe render of the world alone (then the probe settings
@@ -68,7 +75,7 @@ def world_maps_hash(scene, world_digest, image, map_settings):
                          "rotation": image.rotation if image else None,
                          "heights": map_settings.heights,
                          "sampling": map_settings.sampling, **_lobes_key(map_settings),
-                         **_sun_key(scene),
+                         **_sun_key(scene), **_ladder_key(scene),
                          "samples": None if source else scene.platelight.probe_samples,
                          "probe_height": None if source else scene.platelight.probe_height})
 

@@ -3,6 +3,8 @@ other objects at the right direction, the owner never in its own probe, caching,
 culling, world maps, and the scene left as it was."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -160,9 +162,12 @@ def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
     # the diffuse look-up reads the irradiance grid, seen through the distance map
     assert names("Matte") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr"]
     assert names("Mirror") == ["distance.exr", "specular.exr"]
-    assert names("Plain") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr", "glossy1.exr", "glossy2.exr", "specular.exr"]
+    # a lobe that reads glossy2 gets the view-dependent ladder's rungs (Glossy Lobes' default)
+    ladder = ["ladder_glossy1.exr", "ladder_glossy2.exr", "ladder_glossy3.exr"]
+    assert names("Plain") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr", "glossy1.exr", "glossy2.exr",
+                              *ladder, "specular.exr"]
     # brushed: its narrow axis reads above glossy2's glossiness
-    assert names("Brushed") == ["distance.exr", "glossy2.exr", "specular.exr"]
+    assert names("Brushed") == ["distance.exr", "glossy2.exr", *ladder, "specular.exr"]
     # The mirror turns matte: the next bake computes only the diffuse map and drops the old one.
     node = mirror.data.materials[0].node_tree.nodes["Group"]
     node.inputs["Diffuse Albedo"].default_value = (0.5, 0.5, 0.5, 1)
@@ -371,8 +376,6 @@ def test_world_maps_read_from_a_turned_world_match_cycles_rendering_it(bpy_clean
 
 
 def test_probe_origin_object_sets_the_probe_centre(bpy_clean, tmp_path):
-    import json
-
     bpy = bpy_clean
     scene = new_scene(bpy, tmp_path, world_color=(0.0, 0.0, 0.0))
     ob = add_sphere(bpy, "Sphere", (0, 0, 0), radius=0.5)
@@ -396,16 +399,17 @@ def test_pack_maps_into_the_blend_without_duplicates(bpy_clean, tmp_path):
     lamp = add_sphere(bpy, "Lamp", (2, 0, 0), enabled=False, color=(0, 0, 0), emission=(3, 3, 3))
     bake(bpy, all_objects=True, cull=False)
     images = {im.name: im for im in bpy.data.images if im.name.startswith("PlateLight ")}
-    # the four maps and the parallax look-ups' files
+    # the four maps, the parallax look-ups' files and the view-dependent ladder's rungs
     assert sorted(images) == [f"PlateLight Sphere/{n}.exr" for n in
-                              ("diffuse", "diffuse_grid", "distance", "glossy1", "glossy2", "specular")]
+                              ("diffuse", "diffuse_grid", "distance", "glossy1", "glossy2", "ladder_glossy1",
+                               "ladder_glossy2", "ladder_glossy3", "specular")]
     assert all(im.packed_file is not None for im in images.values())
     assert images["PlateLight Sphere/diffuse.exr"].filepath == ob.platelight.probe_dir + "diffuse.exr"
 
     lamp.location.x = -2                       # changes the probe: re-bake re-packs in place
     bake(bpy, all_objects=True, cull=False)
     again = [im for im in bpy.data.images if im.name.startswith("PlateLight ")]
-    assert len(again) == 6 and len(bpy.data.images) == len(images)
+    assert len(again) == len(images) and len(bpy.data.images) == len(images)
     spec = images["PlateLight Sphere/specular.exr"]
     packed = np.array(spec.pixels[:], dtype=np.float32).reshape(spec.size[1], spec.size[0], 4)[::-1, :, :3]
     np.testing.assert_allclose(packed, read_map(tmp_path, "Sphere", "specular"), rtol=1e-6, atol=1e-7)
@@ -503,20 +507,34 @@ def test_fast_world_sampling_is_a_setting_that_makes_probes_stale(bpy_clean, tmp
 
 def test_glossy_lobes_are_a_setting_that_reblurs_the_glossy_maps(bpy_clean, tmp_path):
     """Glossy Lobes GGX makes the bake blur glossy1 and glossy2 with GGX's lobes (the same probe
-    render otherwise); switching it makes the probes stale, and back gives the Phong maps again."""
+    render otherwise); switching it makes the probes stale, and back gives the Phong maps again.
+    The default, View-Dependent GGX, keeps the four Phong maps and writes the ladder's GGX rungs
+    beside them (glossy1 and glossy2 as GGX's own, and glossy3); the others remove the rungs."""
+    from platelight.addon.exr_io import read_exr
+    from platelight.addon.ibl import view_lobe
+
     bpy = bpy_clean
     new_scene(bpy, tmp_path, world_color=(0.3, 0.3, 0.3))
     add_plane(bpy, "Floor", (0, 0, -1), color=(0.9, 0.1, 0.1), phantom=True)
     add_sphere(bpy, "A", (0, 0, 0))
     scene = bpy.context.scene
     names = ("diffuse", "glossy1", "glossy2", "specular")
+    assert scene.platelight.glossy_lobes == view_lobe.MODE
     bake(bpy, all_objects=True, cull=False)
     phong = {m: read_map(tmp_path, "A", m) for m in names}
+    folder = maps_folder(tmp_path, "A")
+    rungs = {m: read_exr(folder / view_lobe.rung_filename(m)) for m in view_lobe.RUNGS}
+    rows = min(view_lobe.RUNG_HEIGHTS[view_lobe.GLOSSY3], scene.platelight.probe_height)
+    assert rungs[view_lobe.GLOSSY3].shape == (rows, 2 * rows, 3)      # capped by the probe's height
+    assert view_lobe.record_sunless(json.loads((folder / "bake.json").read_text())) is False   # no sun here
     before = probe_renders()
     scene.platelight.glossy_lobes = "ggx"
     bake(bpy, all_objects=True, cull=False)
     assert probe_renders() == before + 1
+    assert not any((folder / f).exists() for f in view_lobe.ladder_filenames(None))
     ggx = {m: read_map(tmp_path, "A", m) for m in names}
+    for m in ("glossy1", "glossy2"):       # the rungs are GGX's maps of the same probe
+        np.testing.assert_allclose(rungs[m], ggx[m], rtol=1e-3, atol=1e-5, err_msg=m)
     for m in ("diffuse", "specular"):
         np.testing.assert_allclose(ggx[m], phong[m], rtol=1e-4, atol=1e-6, err_msg=m)
     for m in ("glossy1", "glossy2"):
@@ -622,7 +640,6 @@ def test_the_probes_sun_is_baked_apart_and_shaded_through_the_lobe(bpy_clean, tm
     """A glossy object's bake under a world with a small sun writes the sunless maps and the sun
     (its direction, all its energy) in the record; the probe group shines that sun through the
     lobe and reads the sunless maps, and the scene's Sun Highlight setting switches both back."""
-    import json
 
     from bl_ext.dev.platelight.node_groups import probe_maps, sbrdf_material
     from platelight.addon import names
@@ -657,6 +674,13 @@ def test_the_probes_sun_is_baked_apart_and_shaded_through_the_lobe(bpy_clean, tm
         files = {n["platelight_map"]: n.image.filepath.rsplit("/", 1)[-1] for n in group.nodes
                  if n.get("platelight_map", "").endswith("_sunless") and n.image}
         return rgb, files
+    rgb, files = bound()
+    np.testing.assert_allclose(rgb, sun["rgb"], rtol=1e-6)
+    # the default (View-Dependent GGX) reads the ladder's rungs, made without the sun too
+    assert files["glossy2_sunless"] == "ladder_glossy2.exr"
+    rung = read_exr(folder / "ladder_glossy2.exr")
+    assert glossy2.max() > 20 * rung.max() and rung.min() > 0.1
+    bpy.context.scene.platelight.glossy_lobes = "phong"
     rgb, files = bound()
     np.testing.assert_allclose(rgb, sun["rgb"], rtol=1e-6)
     assert files["glossy2_sunless"] == "glossy2_sunless.exr"

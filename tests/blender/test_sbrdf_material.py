@@ -12,14 +12,15 @@ import sbrdf_scene as sc
 from platelight.addon import names
 from platelight.addon.ibl.anisotropy import TAP_SLOPES
 from platelight.addon.ibl.distance import DISTANCE_NAME
-from platelight.addon.ibl import sun_lobe
+from platelight.addon.ibl import sun_lobe, view_lobe
 from platelight.addon.ibl.irradiance_grid import GRID_NAME
 from platelight.addon.material.params import PARAMETERS
 from platelight.addon.material.presets import PRESETS, preset_label, preset_params
 from support import compat
 
 
-LOOKUP_FILES = (DISTANCE_NAME, GRID_NAME)     # what the parallax look-ups read beside the four maps
+# what the parallax look-ups and the view-dependent ladder's glossy3 read beside the four maps
+LOOKUP_FILES = (DISTANCE_NAME, GRID_NAME, view_lobe.GLOSSY3)
 
 
 def _sm():
