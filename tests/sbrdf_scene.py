@@ -163,3 +163,21 @@ def case_tile(rendered: dict, index: int):
     image, pos = rendered["image"][tile], rendered["pos"][tile]
     mask = interior_mask(pos[..., 3]) & interior_mask(image[..., 3])
     return image[..., :3].astype(np.float64), (pos[..., :3].astype(np.float64) - 0.5) * 4.0, mask
+
+
+def worst_relative_error(rendered: dict, maps: dict, cases: dict, case: str, **reference) -> float:
+    """The worst relative error of case ``case``'s sphere in ``rendered`` (render_cases) against
+    the numpy reference (sbrdf_reference.sbrdf with ``maps`` and ``reference``: sun, sunless,
+    rungs), over its interior away from the poles' wrapped rows."""
+    import dataclasses
+
+    import sbrdf_reference as ref
+    from platelight.addon.material.params import SBRDFParams
+
+    got, P, mask = case_tile(rendered, list(cases).index(case))
+    params = dataclasses.asdict(dataclasses.replace(SBRDFParams(), **cases[case]))
+    want, dirs = ref.sbrdf(P, VIEW, maps, params, **reference)
+    for d in dirs:
+        mask &= ~ref.near_pole(d, maps)
+    assert mask.sum() > 200, "too few pixels compared"
+    return float((np.abs(got - want) / np.maximum(np.abs(want), 1e-2))[mask].max())

@@ -29,10 +29,10 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import support  # noqa: E402,F401
-from bench_anisotropy import mean_psnrs  # noqa: E402
+from bench_anisotropy import MATERIALS as BRUSHED, mean_psnrs  # noqa: E402
 from bench_lobes import HDRIS, VIEW_AZIMUTHS, gain_summary, lookups, sphere_view  # noqa: E402
 from bench_sun_lobe import hdri_maps, shaded  # noqa: E402
-from platelight.addon.ibl import maps, sun_lobe, view_lobe  # noqa: E402
+from platelight.addon.ibl import anisotropy, maps, sun_lobe, view_lobe  # noqa: E402
 
 ROUGHNESS = (0.1, 0.2, 0.3, 0.45, 0.6)
 PIXELS = 28
@@ -65,10 +65,30 @@ def ladder_shaded(ladder, normals, tangents, view, roughness, sun, view_dependen
     return image + share[:, None] * sun_lobe.highlight(normals, tangents, view, alpha, alpha, sun)
 
 
+def brushed_shaded(ladder, normals, tangents, view, roughness, amount, sun, weight):
+    """An anisotropic lobe as the shader reads it: the ladder at the narrow axis's roughness, the
+    taps along its streak plus the view's spread, both scaled by ``weight`` (1: in full; the
+    product's view_lobe.view_weight; 0: the ladder alone), plus the sun through the exact lobe."""
+    glossiness = maps.roughness_to_glossiness(roughness)
+    narrow = anisotropy.narrow_glossiness(glossiness, amount)
+    narrow_roughness = maps.glossiness_to_roughness(narrow)
+    streak = anisotropy.spread(normals, tangents, view, anisotropy.streak_slope(glossiness, amount))
+    centre = lookups(normals, view, narrow, True)
+    view = np.broadcast_to(view, normals.shape)
+    image = view_lobe.lookup(ladder, centre, normals, view, narrow_roughness, streak=streak, weight=weight)
+    if sun is None:
+        return image
+    mu = np.clip(np.sum(normals * view, axis=-1), 0.0, 1.0)
+    share = view_lobe.sun_share(view_lobe.ladder_weights(view_lobe.narrowed_roughness(narrow_roughness, mu, weight)))
+    aspect = float(anisotropy.aspect(amount))
+    return image + share[:, None] * sun_lobe.highlight(normals, tangents, view, roughness ** 2 / aspect,
+                                                       roughness ** 2 * aspect, sun)
+
+
 def main(out_dir: pathlib.Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     views = [sphere_view(a, pixels=PIXELS) for a in VIEW_AZIMUTHS]
-    rows = []
+    rows, brushed = [], []
     for name in HDRIS:
         env, _, sun, sunless_env, sunless = hdri_maps(name)
         ladder, seconds = ladder_maps(env, sun, sunless_env)
@@ -82,10 +102,20 @@ def main(out_dir: pathlib.Path) -> None:
             rows.append((name, roughness, *scores, seconds))
             print(f"{name:10s} r {roughness:.2f}  phong {scores[0]:6.2f}  ladder {scores[1]:6.2f}  "
                   f"ladder+view {scores[2]:6.2f} dB  ({time.perf_counter() - t0:.0f} s)", flush=True)
-    write_report(out_dir / "view_lobe.md", rows)
+        for roughness, amount in BRUSHED:
+            aspect = float(anisotropy.aspect(amount))
+            weight = float(view_lobe.view_weight(1.0 / aspect, aspect))
+            scores = mean_psnrs(
+                env, roughness, amount, views,
+                lambda n, t, v: shaded(sunless, n, t, v, roughness, amount, sun),
+                *(lambda n, t, v, w=w: brushed_shaded(ladder, n, t, v, roughness, amount, sun, w)
+                  for w in (0.0, 1.0, weight)))
+            brushed.append((name, roughness, amount, *scores))
+            print(f"{name:10s} r {roughness:.2f} a {amount:.1f}  " + "  ".join(f"{s:6.2f}" for s in scores), flush=True)
+    write_report(out_dir / "view_lobe.md", rows, brushed)
 
 
-def write_report(path, rows):
+def write_report(path, rows, brushed):
     lines = [
         "# View-dependent glossy look-ups (issue 11)", "",
         " ".join(__doc__.split("\n\n")[1].split()), "", " ".join(__doc__.split("\n\n")[2].split()), "",
@@ -101,7 +131,18 @@ def write_report(path, rows):
         lines.append(f"| {name} | {roughness:.2f} | {default:.2f} | {ladder:.2f} | {view:.2f} | {view - default:+.2f} "
                      f"| {seconds:.2f} |")
     lines += ["", "Mean gain of the view-dependent look-ups over the four Phong maps: "
-              f"{gain_summary([r[4] - r[2] for r in rows])}.", ""]
+              f"{gain_summary([r[4] - r[2] for r in rows])}.", "",
+              "## Anisotropic lobes", "",
+              "A brushed lobe's taps already follow its streak (addon/ibl/anisotropy.py); the view's narrowing and "
+              "spread come on top, scaled by a weight: none (the ladder alone), in full, or the default "
+              "view_lobe.view_weight, (alpha_b / alpha_t)^2. The materials of bench_anisotropy.py.", "",
+              "| HDRI | roughness | anisotropy | four Phong maps (dB) | ladder alone | view in full | view weighted (default) | gain |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, roughness, amount, phong, alone, full, weighted in brushed:
+        lines.append(f"| {name} | {roughness:.2f} | {amount:.1f} | {phong:.2f} | {alone:.2f} | {full:.2f} | "
+                     f"{weighted:.2f} | {weighted - phong:+.2f} |")
+    lines += ["", "Mean gain of the default over the four Phong maps on brushed lobes: "
+              f"{gain_summary([r[6] - r[3] for r in brushed])}.", ""]
     path.write_text("\n".join(lines))
 
 

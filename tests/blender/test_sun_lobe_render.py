@@ -6,17 +6,14 @@ sunless maps and a bake record with a sun: the render against the numpy referenc
 Highlight off (and with a record without a sun) reads the four maps and no sun."""
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-import sbrdf_reference as ref
 import sbrdf_scene as sc
 from platelight.addon.exr_io import write_exr
 from platelight.addon.ibl import lights, sun_lobe
-from platelight.addon.material.params import SBRDFParams
 
 BASE = dict(diffuse_albedo=(0.0, 0.0, 0.0), specular_albedo=(0.9, 0.8, 0.7), glossiness=0.6,
             fresnel_falloff=1e-4, emission_strength=0.0)
@@ -62,13 +59,7 @@ def rendered(bpy_module, tmp_path_factory):
 
 
 def _worst(rendered, key, case, sun, sunless):
-    got, P, mask = sc.case_tile(rendered[key], list(CASES).index(case))
-    params = dataclasses.asdict(dataclasses.replace(SBRDFParams(), **CASES[case]))
-    want, dirs = ref.sbrdf(P, sc.VIEW, rendered["maps"], params, sun=sun, sunless=sunless)
-    for d in dirs:
-        mask &= ~ref.near_pole(d, rendered["maps"])
-    assert mask.sum() > 200, "too few pixels compared"
-    return (np.abs(got - want) / np.maximum(np.abs(want), 1e-2))[mask].max()
+    return sc.worst_relative_error(rendered[key], rendered["maps"], CASES, case, sun=sun, sunless=sunless)
 
 
 @pytest.mark.parametrize("case", list(CASES))

@@ -7,17 +7,14 @@ With Glossy Lobes "Phong", or a record whose ladder holds the sun the group adds
 renders the four maps' look-ups and never a rung."""
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-import sbrdf_reference as ref
 import sbrdf_scene as sc
 from platelight.addon.exr_io import write_exr
 from platelight.addon.ibl import lights, sun_lobe, view_lobe
-from platelight.addon.material.params import SBRDFParams
 
 BASE = dict(diffuse_albedo=(0.0, 0.0, 0.0), specular_albedo=(0.9, 0.8, 0.7), glossiness=0.6,
             fresnel_falloff=1e-4, emission_strength=0.0)
@@ -67,13 +64,8 @@ def rendered(bpy_module, tmp_path_factory):
 
 
 def _worst(rendered, key, case, rungs):
-    got, P, mask = sc.case_tile(rendered[key], list(CASES).index(case))
-    params = dataclasses.asdict(dataclasses.replace(SBRDFParams(), **CASES[case]))
-    want, dirs = ref.sbrdf(P, sc.VIEW, rendered["maps"], params, sun=SUN, sunless=rendered["sunless"], rungs=rungs)
-    for d in dirs:
-        mask &= ~ref.near_pole(d, rendered["maps"])
-    assert mask.sum() > 200, "too few pixels compared"
-    return (np.abs(got - want) / np.maximum(np.abs(want), 1e-2))[mask].max()
+    return sc.worst_relative_error(rendered[key], rendered["maps"], CASES, case, sun=SUN,
+                                   sunless=rendered["sunless"], rungs=rungs)
 
 
 @pytest.mark.parametrize("case", list(CASES))
