@@ -35,6 +35,7 @@ sys.path.insert(0, str(HERE.parent))
 import support  # noqa: E402
 import conftest  # noqa: E402
 from platelight.addon.exr_io import read_exr  # noqa: E402
+from platelight.addon.ibl import view_lobe  # noqa: E402
 from support import compat  # noqa: E402
 
 W, H = 128, 72
@@ -48,7 +49,7 @@ MATERIALS = {
     "anisotropic": dict(colour=(0.9, 0.9, 0.9), roughness=0.3, metallic=1.0, anisotropic=0.8),
 }
 # setup_composite's arguments per route (the rest are its defaults)
-SETUP = {"sbrdf": {}, "sbrdf_ggx": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
+SETUP = {"sbrdf": {}, "sbrdf_ggx": {}, "sbrdf_phong": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
          "sbrdf_layered": dict(method="LAYERED", cg_samples=4),
          "sbrdf_baked": dict(method="BAKED"),      # listed samples: the CG layer's
          "sbrdf_eevee": dict(engine="EEVEE"),
@@ -224,7 +225,8 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False, route="sbrdf"):
     scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
     scene.platelight.probe_owner_shadows = not paper
     scene.platelight.probe_sun_lobe = not paper        # the paper's maps hold their sun
-    scene.platelight.glossy_lobes = "ggx" if route == "sbrdf_ggx" else "phong"
+    # the product's default (View-Dependent GGX) unless the route names the lobes; the paper's are Phong
+    scene.platelight.glossy_lobes = GLOSSY_LOBES.get(route, "phong" if paper else view_lobe.MODE)
     sphere.platelight.enabled = True
     bpy.context.view_layer.objects.active = sphere
     sphere.select_set(True)
@@ -325,7 +327,10 @@ SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_bak
 # measured at 96x54 and left out of the default run: no better than the one-layer default there
 EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,)),
                 # the glossy maps blurred with GGX's lobes (scene setting Glossy Lobes)
-                "ggx": ("platelight ggx lobes", "sbrdf_ggx", (4, 16))}
+                "ggx": ("platelight ggx lobes", "sbrdf_ggx", (4, 16)),
+                # the four Phong maps read round (the default before the view-dependent look-ups)
+                "phong": ("platelight phong lobes", "sbrdf_phong", (4, 16))}
+GLOSSY_LOBES = {"sbrdf_ggx": "ggx", "sbrdf_phong": "phong"}     # the routes that set Glossy Lobes
 SHOT_REFERENCE = "catcher"
 # The shot: the camera orbits 20 degrees about the sphere over 24 frames; rendered and scored are
 # its first and last frames (scene frames 1 and 2 of the benchmark's plate sequence).
