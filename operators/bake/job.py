@@ -359,9 +359,11 @@ class ProbeBake:
         ladder = view_lobe.in_use(plate.glossy_lobes, plate.sampling) and view_lobe.wanted(maps)
         record = {}
         found = None
-        if plate.probe_sun_lobe or ladder:
+        # split the sun only where a sunless map or the ladder will be made from the split
+        splits = plate.probe_sun_lobe and (ladder or any(name in maps for name in sun_lobe.SUNLESS_MAPS))
+        if splits or ladder:
             source = sun_lobe.bake_source(env)
-            found = sun_lobe.split(source) if plate.probe_sun_lobe else (None, source)
+            found = sun_lobe.split(source) if splits else (None, source)
         if plate.probe_sun_lobe:
             record.update(sun_lobe.bake_sunless(folder, env, settings, maps, key_frame, found))
         else:

@@ -229,6 +229,7 @@ def build_scene(bpy, tmp_path, hdri, cube_enabled=True):
     scene.platelight.probe_parallax = False
     scene.platelight.probe_diffuse_parallax = False
     scene.platelight.probe_sun_lobe = False        # the sun through the lobe: test_sun_lobe_render.py
+    scene.platelight.glossy_lobes = "phong"        # the view-dependent ladder: test_view_lobe_render.py
     scene.frame_set(1)
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
     return scene, sphere, cube, plane
