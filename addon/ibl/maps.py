@@ -158,7 +158,7 @@ class MapSettings:
         if name == "diffuse":
             return min(DIFFUSE_LMAX_EXACT, limit)
         if self.glossy_lobes() == "ggx":
-            return _last_degree_above(sh.ggx_lobe_factors(MAP_ROUGHNESS[name] ** 2, min(limit, 256)),
+            return last_degree_above(sh.ggx_lobe_factors(MAP_ROUGHNESS[name] ** 2, min(limit, 256)),
                                       GGX_LOBE_CUTOFF)
         return lobe_lmax(getattr(self, f"{name}_exponent"), limit)
 
@@ -209,10 +209,10 @@ def lobe_lmax(exponent: float, limit: int) -> int:
 
     Not the first small factor: for an even integer s the even factors above s vanish exactly
     while the odd ones only decay polynomially (s = 8: λ_10 = 0 but λ_11 ≈ −1e-4)."""
-    return _last_degree_above(sh.lobe_factors(float(exponent), min(limit, 256)), LOBE_CUTOFF)
+    return last_degree_above(sh.lobe_factors(float(exponent), min(limit, 256)), LOBE_CUTOFF)
 
 
-def _last_degree_above(factors: np.ndarray, cutoff: float) -> int:
+def last_degree_above(factors: np.ndarray, cutoff: float) -> int:
     """The highest degree whose factor is at least ``cutoff`` in magnitude (0 if none)."""
     large = np.nonzero(np.abs(factors) >= cutoff)[0]
     return int(large[-1]) if large.size else 0

@@ -36,7 +36,7 @@ from ..exr_io import write_exr
 from . import sh
 from .anisotropy import TAP_SLOPES
 from .equirect import dir_to_uv, sample_bilinear
-from .maps import GGX_LOBE_CUTOFF, MAP_ROUGHNESS
+from .maps import DEFAULT_HEIGHTS, GGX_LOBE_CUTOFF, MAP_ROUGHNESS, last_degree_above
 from .sun_lobe import sunless_diffuse_part
 
 VERSION = 1                  # in the probe's hash: a bake before the ladder is baked again
@@ -47,7 +47,7 @@ GLOSSY3_ROUGHNESS = 0.18
 RUNGS = ("glossy1", "glossy2", GLOSSY3)          # the ladder's own files, GGX-prefiltered
 RUNG_ROUGHNESS = {"glossy1": MAP_ROUGHNESS["glossy1"], "glossy2": MAP_ROUGHNESS["glossy2"],
                   GLOSSY3: GLOSSY3_ROUGHNESS}
-RUNG_HEIGHTS = {"glossy1": 32, "glossy2": 64, GLOSSY3: 128}
+RUNG_HEIGHTS = {"glossy1": DEFAULT_HEIGHTS["glossy1"], "glossy2": DEFAULT_HEIGHTS["glossy2"], GLOSSY3: 128}
 # The ladder the shader blends, rough to sharp: the contract's diffuse and mirror maps around the rungs.
 LADDER = ("diffuse", "glossy1", "glossy2", GLOSSY3, "specular")
 LADDER_ROUGHNESS = tuple(MAP_ROUGHNESS.get(name, RUNG_ROUGHNESS.get(name)) for name in LADDER)
@@ -97,7 +97,7 @@ def compute_rungs(env: np.ndarray, heights: dict | None = None) -> dict:
     env = np.asarray(env, dtype=np.float32)[..., :3]
     limit = max(2, env.shape[0] - 1)
     factors = {name: sh.ggx_lobe_factors(RUNG_ROUGHNESS[name] ** 2, min(limit, 255)) for name in RUNGS}
-    degrees = {name: _converged_degree(f) for name, f in factors.items()}
+    degrees = {name: last_degree_above(f, GGX_LOBE_CUTOFF) for name, f in factors.items()}
     coeffs = sh.project_exact(env, max(degrees.values()))
     rungs = {}
     for name in RUNGS:
@@ -105,11 +105,6 @@ def compute_rungs(env: np.ndarray, heights: dict | None = None) -> dict:
         image = sh.synthesize(coeffs[: (lmax + 1) ** 2], int(heights[name]), factors[name][: lmax + 1])
         rungs[name] = np.ascontiguousarray(np.maximum(image, 0.0), dtype=np.float32)
     return rungs
-
-
-def _converged_degree(factors: np.ndarray) -> int:
-    large = np.nonzero(np.abs(factors) >= GGX_LOBE_CUTOFF)[0]
-    return int(large[-1]) if large.size else 0
 
 
 def bake(folder: str, env: np.ndarray, heights: dict, frame: int | None, sunless: bool) -> dict:
