@@ -181,3 +181,26 @@ def worst_relative_error(rendered: dict, maps: dict, cases: dict, case: str, **r
         mask &= ~ref.near_pole(d, maps)
     assert mask.sum() > 200, "too few pixels compared"
     return float((np.abs(got - want) / np.maximum(np.abs(want), 1e-2))[mask].max())
+
+
+def render_cases_in_new_scene(bpy, folder: pathlib.Path, cases: dict, **settings) -> dict:
+    """render_cases in an empty factory scene whose scene.platelight ``settings`` are set first
+    (e.g. glossy_lobes="phong"): each call binds the probe group afresh under those settings."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    for name, value in settings.items():
+        setattr(bpy.context.scene.platelight, name, value)
+    return render_cases(bpy, folder, cases)
+
+
+def write_sunlit_probe(folder: pathlib.Path) -> tuple[dict, dict]:
+    """A probe folder with the four synthetic maps and different synthetic sunless maps (as a bake
+    that split a sun writes them; the record is the caller's): (maps, sunless maps)."""
+    from platelight.addon.ibl import sun_lobe
+
+    maps = synthetic_maps()
+    sunless = {k: v for k, v in synthetic_maps(seed=1).items() if k in sun_lobe.SUNLESS_MAPS}
+    write_maps(folder, maps)
+    for name, image in sunless.items():
+        write_exr(folder / sun_lobe.sunless_filename(name), image)
+    return maps, sunless
+

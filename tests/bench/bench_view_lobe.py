@@ -38,16 +38,14 @@ ROUGHNESS = (0.1, 0.2, 0.3, 0.45, 0.6)
 PIXELS = 28
 
 
-def ladder_maps(env, sun, sunless_env):
-    """LADDER name -> map as the bake makes them (rungs from the probe without its sun, the
-    contract's diffuse and mirror maps around them), and the seconds the rungs took."""
+def ladder_maps(env, sun, sunless_env, sunless):
+    """LADDER name -> map as the bake makes them (rungs from the probe without its sun, around
+    them the diffuse map the specular look-ups read, sunless where the sun is split, and the mirror
+    map, both from hdri_maps' ``sunless``), and the seconds the rungs took."""
     t0 = time.perf_counter()
     rungs = view_lobe.compute_rungs(sunless_env if sun is not None else env)
     seconds = time.perf_counter() - t0
-    contract = maps.compute_maps(env.astype(np.float32), maps.MapSettings(), which=("specular",)).maps
-    diffuse_source = sunless_env if sun is not None else env
-    diffuse = maps.compute_maps(diffuse_source.astype(np.float32), maps.MapSettings(), which=("diffuse",)).maps
-    return {**rungs, "diffuse": diffuse["diffuse"], "specular": contract["specular"]}, seconds
+    return {**rungs, "diffuse": sunless["diffuse"], "specular": sunless["specular"]}, seconds
 
 
 def ladder_shaded(ladder, normals, tangents, view, roughness, sun, view_dependent):
@@ -91,7 +89,7 @@ def main(out_dir: pathlib.Path) -> None:
     rows, brushed = [], []
     for name in HDRIS:
         env, _, sun, sunless_env, sunless = hdri_maps(name)
-        ladder, seconds = ladder_maps(env, sun, sunless_env)
+        ladder, seconds = ladder_maps(env, sun, sunless_env, sunless)
         for roughness in ROUGHNESS:
             t0 = time.perf_counter()
             scores = mean_psnrs(

@@ -35,20 +35,14 @@ SUN = lights.DirectionalLight(np.array([0.5, -0.6, 0.7]) / np.linalg.norm([0.5, 
 
 
 def _render(bpy, folder, sun_highlight):
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    bpy.context.scene.platelight.probe_sun_lobe = sun_highlight
-    return sc.render_cases(bpy, folder, CASES)
+    return sc.render_cases_in_new_scene(bpy, folder, CASES, probe_sun_lobe=sun_highlight)
 
 
 @pytest.fixture(scope="module")
 def rendered(bpy_module, tmp_path_factory):
     bpy = bpy_module
     folder = tmp_path_factory.mktemp("sun_lobe") / "probe"
-    maps = sc.synthetic_maps()
-    sunless = {k: v for k, v in sc.synthetic_maps(seed=1).items() if k in sun_lobe.SUNLESS_MAPS}
-    sc.write_maps(folder, maps)
-    for name, image in sunless.items():
-        write_exr(folder / sun_lobe.sunless_filename(name), image)
+    maps, sunless = sc.write_sunlit_probe(folder)
     (folder / "bake.json").write_text(json.dumps({"hash": "test", "maps": list(maps),
                                                   sun_lobe.RECORD_KEY: sun_lobe.to_record(SUN)}))
     renders = {"on": _render(bpy, folder, True), "off": _render(bpy, folder, False)}

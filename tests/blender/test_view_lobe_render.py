@@ -37,22 +37,16 @@ def _record(sunless_ladder):
 
 
 def _render(bpy, folder, lobes):
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    bpy.context.scene.platelight.glossy_lobes = lobes
-    return sc.render_cases(bpy, folder, CASES)
+    return sc.render_cases_in_new_scene(bpy, folder, CASES, glossy_lobes=lobes)
 
 
 @pytest.fixture(scope="module")
 def rendered(bpy_module, tmp_path_factory):
     bpy = bpy_module
     folder = tmp_path_factory.mktemp("view_lobe") / "probe"
-    maps = sc.synthetic_maps()
-    sunless = {k: v for k, v in sc.synthetic_maps(seed=1).items() if k in sun_lobe.SUNLESS_MAPS}
+    maps, sunless = sc.write_sunlit_probe(folder)
     other = sc.synthetic_maps(seed=2)
     rungs = {"glossy1": other["glossy1"], "glossy2": other["glossy2"], view_lobe.GLOSSY3: other["specular"]}
-    sc.write_maps(folder, maps)
-    for name, image in sunless.items():
-        write_exr(folder / sun_lobe.sunless_filename(name), image)
     for name, image in rungs.items():
         write_exr(folder / view_lobe.rung_filename(name), image)
     (folder / "bake.json").write_text(_record(True))
