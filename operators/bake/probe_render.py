@@ -12,6 +12,7 @@ import bpy
 
 from ... import compat
 from ...addon import names
+from ...addon.bake.probe_size import samples_for
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
 from ...addon.ibl.equirect import downsample_area
@@ -143,6 +144,8 @@ class ProbeRenderer:
             self.begin()
         self.camera.location = tuple(float(x) for x in origin)
         height = int(height or self.scene.platelight.probe_height)
+        # begin() recorded the user's samples; a small probe gets more (probe_size.samples_for)
+        self.scene.cycles.samples = self.samples or samples_for(self.scene.platelight.probe_samples, height)
         render = self.scene.render
         render.resolution_x, render.resolution_y = 2 * height, height   # begin() recorded the user's
         restore = []

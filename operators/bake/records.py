@@ -12,6 +12,7 @@ from ...addon import names
 from ...addon.bake.hashing import content_hash
 from ...addon.bake.layout import lookup_filenames
 from ...addon.bake.needs import OWNER_INDIRECT
+from ...addon.bake.probe_size import MAX_SAMPLE_FACTOR, SAMPLE_ROWS
 from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
 from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
 from ...addon.ibl.maps import MapSettings, map_filename
@@ -37,6 +38,7 @@ def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_heig
         **sized, **indirect, **with_grid,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
         "distance": DISTANCE_VERSION, **_sun_key(scene), **_ladder_key(scene),
+        "samples_rule": [SAMPLE_ROWS, MAX_SAMPLE_FACTOR],
         "settings": [settings.probe_height, settings.probe_samples, settings.sampling,
                      settings.probe_fast_world, settings.probe_owner_shadows,
                      settings.probe_distance],
@@ -76,7 +78,8 @@ def world_maps_hash(scene, world_digest, image, map_settings):
                          "heights": map_settings.heights,
                          "sampling": map_settings.sampling, **_lobes_key(map_settings),
                          **_sun_key(scene), **_ladder_key(scene),
-                         "samples": None if source else scene.platelight.probe_samples,
+                         "samples": None if source else [scene.platelight.probe_samples, SAMPLE_ROWS,
+                                                         MAX_SAMPLE_FACTOR],
                          "probe_height": None if source else scene.platelight.probe_height})
 
 

@@ -693,3 +693,24 @@ def test_the_probes_sun_is_baked_apart_and_shaded_through_the_lobe(bpy_clean, tm
     bpy.context.scene.platelight.probe_sun_lobe = False
     bake(bpy, all_objects=True, cull=False)
     assert not list(folder.glob("*_sunless*")) and "sun" not in json.loads((folder / "bake.json").read_text())
+
+
+def test_small_probe_renders_with_more_samples_and_the_scene_keeps_its_own(bpy_clean, tmp_path):
+    """probe_size.samples_for: a 32-row probe at Probe Samples 2 renders at 8 spp; the scene's own
+    render samples are back afterwards."""
+    from platelight.addon.bake.probe_size import samples_for
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5), height=32, samples=2)
+    scene.cycles.samples = 7
+    add_sphere(bpy, "Sphere", (0, 0, 0), radius=0.5, color=(1, 1, 1))
+    seen = []
+
+    def record(render_scene, *_):
+        seen.append(render_scene.cycles.samples)
+    bpy.app.handlers.render_pre.append(record)
+    try:
+        bake(bpy, all_objects=True, cull=False)
+    finally:
+        bpy.app.handlers.render_pre.remove(record)
+    assert seen and set(seen) == {samples_for(2, 32)} == {8}
+    assert scene.cycles.samples == 7
