@@ -85,13 +85,14 @@ def test_auto_height(diameter, minimum, maximum, height):
 
 def test_small_probes_get_more_samples_at_no_more_cost_than_a_128_row_probe():
     from platelight.addon.bake.probe_size import MAX_SAMPLE_FACTOR, SAMPLE_ROWS, samples_for
-    assert samples_for(16, 64) == 64                      # the default 64-row probe: 4x
+    assert samples_for(16, 64) == 16 * MAX_SAMPLE_FACTOR  # the default 64-row probe: capped
     assert samples_for(16, 32) == 16 * MAX_SAMPLE_FACTOR  # capped
     assert samples_for(16, SAMPLE_ROWS) == 16             # at and above SAMPLE_ROWS: Probe Samples
     assert samples_for(16, 512) == 16
-    for height in (40, 64, 90, 100, 120):
+    for height in (40, 64, 92, 100, 120):
         samples = samples_for(16, height)
         assert 16 < samples <= 16 * MAX_SAMPLE_FACTOR
         # rays per probe: never above a SAMPLE_ROWS probe's at Probe Samples (rounding aside)
         assert samples * height * height <= 16 * SAMPLE_ROWS * SAMPLE_ROWS * 1.01
+    assert samples_for(16, 100) == 26                     # (128 / 100)^2 = 1.64 times
     assert samples_for(1, 512) == 1 and samples_for(1, 8) == MAX_SAMPLE_FACTOR

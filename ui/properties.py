@@ -86,7 +86,7 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
     probe_samples: IntProperty(
         name="Probe Samples",
         description="Cycles samples per pixel for probe renders. A probe under 128 pixels high gets "
-        "more, up to 4 times as many, as many as a 128-pixel probe costs: its noise shows in glossy "
+        "more, up to twice as many, no more than a 128-pixel probe costs: its noise shows in glossy "
         "reflections",
         default=16, min=1, soft_max=256, max=65536,
     )

@@ -52,11 +52,13 @@ def auto_probe_height(diameter_px: float, minimum: int, maximum: int = DEFAULT_M
 
 # A probe below SAMPLE_ROWS rows is cheap, and its noise reaches a glossy reflection whole: the
 # composite benchmark's glossy copper (64-row probe, 480x270, 16 CG spp) scores 37.34 dB object PSNR
-# with 16 probe spp, 37.66 with 64 and 37.67 with 256 (docs/decisions.md, "Probe samples").
-# So a smaller probe gets more samples, up to MAX_SAMPLE_FACTOR times Probe Samples, as many as
-# keep its cost at a SAMPLE_ROWS probe's; larger (mirror) probes keep Probe Samples.
+# with 16 probe spp, 37.57 with 32, 37.66 with 64 and 37.67 with 256 (docs/decisions.md, "Probe
+# samples"). So a smaller probe gets more samples, as many as keep its rays at a SAMPLE_ROWS
+# probe's, but at most MAX_SAMPLE_FACTOR times Probe Samples: 2 takes 70 % of the gain and keeps
+# the default probe's bake near issue 4's 0.5 s per object-frame (docs/bake.md); larger (mirror)
+# probes keep Probe Samples.
 SAMPLE_ROWS = 128
-MAX_SAMPLE_FACTOR = 4
+MAX_SAMPLE_FACTOR = 2
 
 
 def samples_for(probe_samples: int, height: int) -> int:
