@@ -8,10 +8,14 @@ import pathlib
 import numpy as np
 
 from platelight.addon.exr_io import read_exr, write_exr
+from platelight.addon.ibl import lights
 from support import compat
 
 MAP_HEIGHTS = {"diffuse": 16, "glossy1": 32, "glossy2": 64, "specular": 128}
 VIEW = np.array([0.0, -1.0, 0.0])     # surface -> viewer for a camera looking along +Y
+# The sun the sun and ladder render tests write into a write_sunlit_probe folder's record.
+SUN = lights.DirectionalLight(np.array([0.5, -0.6, 0.7]) / np.linalg.norm([0.5, -0.6, 0.7]),
+                              np.array([5.0, 4.0, 3.0]), 0.02, True)
 
 
 def synthetic_maps(seed: int = 0) -> dict:

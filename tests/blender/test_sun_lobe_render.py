@@ -13,7 +13,7 @@ import pytest
 
 import sbrdf_scene as sc
 from platelight.addon.exr_io import write_exr
-from platelight.addon.ibl import lights, sun_lobe
+from platelight.addon.ibl import sun_lobe
 
 BASE = dict(diffuse_albedo=(0.0, 0.0, 0.0), specular_albedo=(0.9, 0.8, 0.7), glossiness=0.6,
             fresnel_falloff=1e-4, emission_strength=0.0)
@@ -30,8 +30,7 @@ CASES = {
     "transparent": dict(BASE, glossiness=0.9, fresnel_falloff=1 / 6, alpha=0.3, ior=1.45,
                         diffuse_albedo=(0.9, 1.0, 0.8), specular_albedo=(0.04, 0.04, 0.04)),
 }
-SUN = lights.DirectionalLight(np.array([0.5, -0.6, 0.7]) / np.linalg.norm([0.5, -0.6, 0.7]),
-                              np.array([5.0, 4.0, 3.0]), 0.02, True)
+SUN = sc.SUN
 
 
 def _render(bpy, folder, sun_highlight):

@@ -14,7 +14,7 @@ import pytest
 
 import sbrdf_scene as sc
 from platelight.addon.exr_io import write_exr
-from platelight.addon.ibl import lights, sun_lobe, view_lobe
+from platelight.addon.ibl import sun_lobe, view_lobe
 
 BASE = dict(diffuse_albedo=(0.0, 0.0, 0.0), specular_albedo=(0.9, 0.8, 0.7), glossiness=0.6,
             fresnel_falloff=1e-4, emission_strength=0.0)
@@ -27,8 +27,7 @@ CASES = {
     "fresnel": dict(BASE, glossiness=0.4, fresnel_falloff=0.3, diffuse_albedo=(0.3, 0.2, 0.3),
                     specular_albedo=(0.05, 0.05, 0.05)),
 }
-SUN = lights.DirectionalLight(np.array([0.5, -0.6, 0.7]) / np.linalg.norm([0.5, -0.6, 0.7]),
-                              np.array([5.0, 4.0, 3.0]), 0.02, True)
+SUN = sc.SUN
 
 
 def _record(sunless_ladder):
