@@ -61,13 +61,28 @@ class Graph:
         self.tree.links.new(src, dst)
 
 
+def tents(g, position, count):
+    """Weights max(0, 1 - |position - k|) of knots k = 0 .. count - 1: linear between neighbours."""
+    return [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
+                                     g.math("ABSOLUTE", g.math("SUBTRACT", position, float(k)))), 0.0)
+            for k in range(count)]
+
+
+def knot_position(g, knots, value):
+    """Where ``value`` lies among decreasing ``knots``: k + the fraction of the way to knot k + 1
+    (0 at or above the first, len(knots) - 1 at or below the last), piecewise linear."""
+    position = 0.0
+    for k in range(len(knots) - 1):
+        part = g.math("DIVIDE", g.math("SUBTRACT", knots[k], value), knots[k] - knots[k + 1])
+        position = g.math("ADD", position, g.math("MINIMUM", g.math("MAXIMUM", part, 0.0), 1.0))
+    return position
+
+
 def tent_weights(g, glossiness):
     """maps.tent_weights in nodes: each map's weight (MAP_NAMES order) for glossiness n'."""
     scaled = g.math("MULTIPLY", g.math("MINIMUM", g.math("MAXIMUM", glossiness, 0.0), 1.0),
                     float(GLOSSINESS_SCALE))
-    return [g.math("MAXIMUM", g.math("SUBTRACT", 1.0,
-                                     g.math("ABSOLUTE", g.math("SUBTRACT", scaled, float(k)))), 0.0)
-            for k in range(len(MAP_NAMES))]
+    return tents(g, scaled, len(MAP_NAMES))
 
 
 def float_curve(g, xs, ys, value):

@@ -26,7 +26,7 @@ from ..addon.ibl.anisotropy import TAP_SLOPES
 from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
 from ..addon.ibl.maps import (GLOSSINESS_KNOTS, GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, ROUGHNESS_KNOTS,
                               map_filename)
-from ._build import VERSION_KEY, Graph, float_curve, io_nodes, sync_interface, tent_weights
+from ._build import VERSION_KEY, Graph, float_curve, io_nodes, knot_position, sync_interface, tent_weights, tents
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
@@ -436,11 +436,7 @@ def _footprint_glossiness(g, glossiness, ratio):
                                                      knots[0] - knots[1]), 0.0), 1.0)
     ratio = g.math("SUBTRACT", 1.0, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, ratio), fade))
     angle = g.math("MULTIPLY", angle, ratio)
-    narrowed = 0.0
-    for k in range(len(knots) - 1):
-        part = g.math("DIVIDE", g.math("SUBTRACT", knots[k], angle), knots[k] - knots[k + 1])
-        narrowed = g.math("ADD", narrowed, g.math("MINIMUM", g.math("MAXIMUM", part, 0.0), 1.0))
-    return g.math("DIVIDE", narrowed, float(GLOSSINESS_SCALE))
+    return g.math("DIVIDE", knot_position(g, knots, angle), float(GLOSSINESS_SCALE))
 
 
 def _view_lobe(g, inp, roughness, on):
@@ -460,12 +456,7 @@ def _view_lobe(g, inp, roughness, on):
     narrow = g.math("MULTIPLY", roughness, factor)
     # the ladder's position (0 = diffuse ... 4 = mirror): exact, piecewise linear in roughness
     knots = view_lobe.LADDER_ROUGHNESS
-    position = 0.0
-    for k in range(len(knots) - 1):
-        part = g.math("DIVIDE", g.math("SUBTRACT", knots[k], narrow), knots[k] - knots[k + 1])
-        position = g.math("ADD", position, g.math("MINIMUM", g.math("MAXIMUM", part, 0.0), 1.0))
-    weights = [g.math("MAXIMUM", g.math("SUBTRACT", 1.0, g.math("ABSOLUTE", g.math("SUBTRACT", position, float(k)))),
-                      0.0) for k in range(len(knots))]
+    weights = tents(g, knot_position(g, knots, narrow), len(knots))
     third = view_lobe.LADDER.index(view_lobe.GLOSSY3)
     folded = g.math("MULTIPLY", weights[third], g.math("SUBTRACT", 1.0, on))
     weights[third - 1] = g.math("MULTIPLY_ADD", folded, view_lobe.fold_share(), weights[third - 1])
