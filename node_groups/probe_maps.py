@@ -134,7 +134,7 @@ def bind_images(tree):
     frame = first if kind == "sequence" else None
     record = read_record(path, frame) if kind != "missing" else {}
     sun = _steady_sun(path, record, kind == "sequence") if kind != "missing" else None
-    ladder = _ladder_on(path, record, frame, sun) if kind != "missing" else False
+    ladder = _ladder_on(path, record, frame, sun, kind == "sequence") if kind != "missing" else False
     for node in tree.nodes:
         name = node.get("platelight_map")
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
@@ -233,19 +233,25 @@ def _steady_sun(path, record, sequence):
     return sun
 
 
-def _ladder_on(path, record, frame, sun) -> bool:
+def _ladder_on(path, record, frame, sun, sequence=False) -> bool:
     """Does the group read the view-dependent ladder? When the scene asks for it (Glossy Lobes,
-    view_lobe.in_use), the bake wrote every rung of this frame, and the rungs lack the sun exactly
-    when the group adds it through the lobe (a ladder baked sunless, read without the sun term,
-    would lose the sun; one baked with it, read with the term, would show it twice)."""
+    view_lobe.in_use), the bake wrote every rung, and the rungs lack the sun exactly when the
+    group adds it through the lobe (a ladder baked sunless, read without the sun term, would lose
+    the sun; one baked with it, read with the term, would show it twice). Over a baked sequence
+    every frame present must qualify: the switch is one for all frames, and a frame without its
+    rungs would read no image (black glossy lobes)."""
     scene = getattr(bpy.context, "scene", None)
     settings = getattr(scene, "platelight", None)
     if settings is None or not view_lobe.in_use(settings.glossy_lobes, settings.sampling):
         return False
-    if not all(os.path.isfile(os.path.join(path, f)) for f in view_lobe.ladder_filenames(frame)):
-        return False
-    sunless = view_lobe.record_sunless(record)
-    return sunless is not None and sunless == (sun is not None)
+    frames = sorted({f for numbers in _sequence_frames(path).values() for f in numbers}) if sequence else [frame]
+    for each in frames:
+        if not all(os.path.isfile(os.path.join(path, f)) for f in view_lobe.ladder_filenames(each)):
+            return False
+        sunless = view_lobe.record_sunless(record if each == frame else read_record(path, each))
+        if sunless is None or sunless != (sun is not None):
+            return False
+    return True
 
 
 def _bind_sun(tree, sun):

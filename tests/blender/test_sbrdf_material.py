@@ -131,6 +131,33 @@ def test_image_sequence_maps(bpy_clean, tmp_path):
     assert envs[0].image.filepath.endswith("_0001.exr")
 
 
+def test_sequence_reads_the_ladder_only_when_every_frame_has_its_rungs(bpy_clean, tmp_path):
+    """The ladder's switch is one for all frames: a frame baked without rungs (another Glossy
+    Lobes, an older bake on a farm node) turns it off, so that no frame reads missing rungs."""
+    from platelight.addon.bake.layout import write_record
+    from platelight.addon.exr_io import write_exr
+
+    folder = tmp_path / "seq"
+    maps = sc.synthetic_maps()
+    for frame in (1, 2, 3):
+        sc.write_maps(folder, maps, frame=frame)
+        for name in view_lobe.RUNGS:
+            write_exr(folder / view_lobe.rung_filename(name, frame), maps["specular"])
+        write_record(str(folder), frame, "test", list(maps), **{view_lobe.RECORD_KEY: {
+            "version": view_lobe.VERSION, "sunless": False}})
+    ob = _sphere(bpy_clean)
+    ob.platelight.probe_dir = str(folder)
+    sm = _sm()
+
+    def ladder_on():
+        group = sm.probe_node(sm.apply_sbrdf_material(ob)).node_tree
+        return group.nodes[names.VIEW_LOBE_NODE].outputs[0].default_value == 1.0
+
+    assert ladder_on()
+    (folder / view_lobe.rung_filename("glossy2", 3)).unlink()
+    assert not ladder_on()
+
+
 def test_group_is_idempotent_and_upgrades_in_place(bpy_clean, tmp_path):
     bpy = bpy_clean
     from bl_ext.dev.platelight.node_groups import sbrdf
