@@ -22,7 +22,7 @@ TWIN_NODE = "PlateLight Principled Twin"    # in an SBRDF material: what non-cam
 RAY_SPLIT_NODE = "PlateLight Ray Split"     # max(Is Camera Ray, Emission For All Rays)
 RAY_MIX_NODE = "PlateLight Ray Mix"
 LIGHT_PATH_NODE = "PlateLight Light Path"
-PROBE_DISTANCE = "PlateLight Probe Distance"    # the bake's temporary distance material/world
+PROBE_DISTANCE = "PlateLight Probe Distance"    # the bake's temporary distance material
 UNBAKED_MAP = "PlateLight Unbaked Map"   # 1x1 black stand-in for a map not baked yet
 
 # --- compositing (node_groups/composite.py, node_groups/compositor_tree.py)

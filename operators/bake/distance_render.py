@@ -4,7 +4,7 @@ from the same centre with the same objects hidden.
 Blender 5.2 writes no Depth pass into the probe's EXR (checked: even a multilayer EXR held only
 Combined), so the distance is rendered as a colour: one 1-spp render where every surface emits
 Camera Data's View Distance (for a panoramic camera the radial distance from its centre) and the
-world emits FAR, at DISTANCE_SCALE times the probe's size (sharper silhouettes for almost nothing:
+sky (transparent film) reads as FAR, at DISTANCE_SCALE times the probe's size (sharper silhouettes for almost nothing:
 a box's reflection IoU 0.81 at the probe's size, 0.87 at 4x), but no larger than
 DISTANCE_MAX_HEIGHT unless the probe is: a probe sized to a large mirror on screen (1024 px
 high) would otherwise make a 4096 x 8192 map of 128 MiB."""
@@ -29,9 +29,9 @@ def distance_height(probe_height: int) -> int:
     return max(probe_height, min(DISTANCE_SCALE * probe_height, DISTANCE_MAX_HEIGHT))
 
 
-def distance_datablocks():
-    """(material emitting View Distance, world emitting FAR), made on first use; ``remove()``
-    takes them away again at the bake's end."""
+def distance_material():
+    """The material emitting View Distance, made on first use; ``remove()`` takes it away again
+    at the bake's end."""
     material = bpy.data.materials.get(names.PROBE_DISTANCE)
     if material is None:
         material = compat.new_material(names.PROBE_DISTANCE)
@@ -42,40 +42,37 @@ def distance_datablocks():
         out = tree.nodes.new("ShaderNodeOutputMaterial")
         tree.links.new(camera.outputs["View Distance"], emit.inputs["Color"])
         tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
-    world = bpy.data.worlds.get(names.PROBE_DISTANCE)
-    if world is None:
-        world = compat.new_world(names.PROBE_DISTANCE)
-        background = world.node_tree.nodes["Background"]
-        background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-        background.inputs["Strength"].default_value = distance_maps.FAR
-    return material, world
+    return material
 
 
 def remove():
     material = bpy.data.materials.get(names.PROBE_DISTANCE)
     if material is not None:
         bpy.data.materials.remove(material)
-    world = bpy.data.worlds.get(names.PROBE_DISTANCE)
-    if world is not None:
-        bpy.data.worlds.remove(world)
 
 
 def render_distance(scene, view_layer, folder, clip_end):
     """Render the distance panorama with the probe's set-up (camera, hidden objects) as it is now;
-    returns (distance map (H, W) float32, warnings)."""
-    material, world = distance_datablocks()
+    returns (distance map (H, W) float32, warnings).
+
+    The world stays the scene's and the sky is told by the film's alpha: swapping in a world
+    that emits FAR made Cycles rebuild the scene world's light-importance map at the next probe,
+    about 1 s per probe under a 2k HDRI (docs/bench/bake.md), more than the probe itself."""
+    material = distance_material()
     render = scene.render
-    saved = [(scene, "world", scene.world), (view_layer, "material_override", view_layer.material_override),
+    fmt = render.image_settings
+    saved = [(view_layer, "material_override", view_layer.material_override),
              (scene.cycles, "samples", scene.cycles.samples),
              (scene.cycles, "use_denoising", scene.cycles.use_denoising), (render, "filepath", render.filepath),
              (render, "resolution_x", render.resolution_x), (render, "resolution_y", render.resolution_y),
-             (render, "film_transparent", render.film_transparent)]
+             (render, "film_transparent", render.film_transparent), (fmt, "color_mode", fmt.color_mode)]
     path = os.path.join(folder, "distance.exr")
     try:
-        scene.world, view_layer.material_override = world, material
+        view_layer.material_override = material
         scene.cycles.samples = 1
         scene.cycles.use_denoising = False          # a denoised distance is no distance
-        render.film_transparent = False             # the sky is FAR, not empty
+        render.film_transparent = True              # the sky: alpha 0, read as FAR
+        fmt.color_mode = "RGBA"
         render.filepath = path
         height = distance_height(render.resolution_y)
         render.resolution_x, render.resolution_y = 2 * height, height
@@ -83,7 +80,10 @@ def render_distance(scene, view_layer, folder, clip_end):
     finally:
         for owner, attr, value in reversed(saved):
             setattr(owner, attr, value)
-    return distance_maps.distance_map(read_exr(path, "RGB")[..., 0], clip_end)
+    rgba = read_exr(path, "RGBA")
+    # one sample per texel: alpha is 0 or 1
+    depth = np.where(rgba[..., 3] < 0.5, np.float32(distance_maps.FAR), rgba[..., 0])
+    return distance_maps.distance_map(depth, clip_end)
 
 
 def write_probe_distance(distance, folder, frame, offsets):
