@@ -15,8 +15,8 @@ class PlateLightPreferences(bpy.types.AddonPreferences):
         default=True,
     )
     threads: IntProperty(
-        name="Render Threads",
-        description="Threads for probe renders (0: all cores)",
+        name="Bake Threads",
+        description="Threads for probe renders and the bake's irradiance grids (0: all cores)",
         default=0, min=0, max=1024,
     )
 

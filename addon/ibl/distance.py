@@ -19,8 +19,8 @@ edges: its reflection's IoU fell from 0.70 at 3 iterations to 0.64 at 6.)
 
 The map is rendered from the probe's centre with every surface emitting Camera Data's View
 Distance, which for an equirectangular camera is the radial distance from its centre
-(tests/blender/test_parallax.py checks it on a floor seen at known angles); the world emits FAR,
-so a look-up towards it keeps its direction.
+(tests/blender/test_parallax.py checks it on a floor seen at known angles); the sky (a
+transparent texel) reads as FAR, so a look-up towards it keeps its direction.
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ import numpy as np
 from ..errors import PlateLightError
 from ..exr_io import write_exr
 from ..fileio import remove_if_present
-from .equirect import dir_to_uv
+from .equirect import xyz_to_uv
 
 DISTANCE_NAME = "distance"
 VERSION = 1                  # part of the probe hash: bakes without a distance map are redone
@@ -114,11 +114,17 @@ def remove_distance(folder, frame: int | None = None) -> None:
 
 def _equirect_lookup(distance: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Nearest-texel lookup in the Environment Texture's layout (equirect.py)."""
+    d = np.asarray(directions, dtype=np.float64)
+    return _lookup_xyz(distance, d[..., 0], d[..., 1], d[..., 2])
+
+
+def _lookup_xyz(distance: np.ndarray, x, y, z) -> np.ndarray:
+    """_equirect_lookup of directions given as component arrays, in their precision."""
     h, w = distance.shape
-    u, v = dir_to_uv(directions)
-    col = np.clip((u * w).astype(int), 0, w - 1)
-    row = np.clip(((1.0 - v) * h).astype(int), 0, h - 1)
-    return distance[row, col]
+    u, v = xyz_to_uv(x, y, z)
+    col = np.clip((u * w).astype(np.intp), 0, w - 1)
+    row = np.clip(((1.0 - v) * h).astype(np.intp), 0, h - 1)
+    return distance.ravel()[row * w + col]
 
 
 def parallax_directions(distance: np.ndarray, p: np.ndarray, reflected: np.ndarray) -> np.ndarray:
@@ -132,35 +138,58 @@ def parallax_search(distance: np.ndarray, p: np.ndarray, reflected: np.ndarray):
     directions: the node group's search. The footprint ratio is the hit's distance from the
     shading point over its distance from the probe centre (1 where the ray escapes): a lobe of a
     given angle seen from the point covers that fraction of the width it covers from the centre,
-    where the maps were blurred (maps.footprint_glossiness)."""
-    r_dir = reflected / np.linalg.norm(reflected, axis=-1, keepdims=True)
-    plen = np.linalg.norm(p, axis=-1)
+    where the maps were blurred (maps.footprint_glossiness).
 
-    def s(t):
-        q = p + t[..., None] * r_dir
-        return np.linalg.norm(q, axis=-1) - _equirect_lookup(distance, q)
+    Computed in float32 when ``p`` and ``reflected`` both are (the bake's irradiance grid), else
+    float64, on component arrays (numpy's reductions over a last axis of 3 are slow). Each step
+    evaluates only the rays still unresolved, and the secant refines only those that hit: a
+    resolved ray's bracket never changes again, and an escaping ray keeps its direction whatever
+    its bracket, so the result is the full search's."""
+    dtype = np.float32 if np.result_type(p, reflected) == np.float32 else np.float64
+    p, reflected = np.broadcast_arrays(np.asarray(p, dtype), np.asarray(reflected, dtype))
+    shape = p.shape[:-1]
+    p = [np.ascontiguousarray(p[..., i]).reshape(-1) for i in range(3)]
+    r = [np.ascontiguousarray(reflected[..., i]).reshape(-1) for i in range(3)]
+    r_len = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+    r = [c / r_len for c in r]
+    plen = np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
 
-    t_a = np.zeros_like(plen)
-    s_a = np.minimum(s(t_a), -1e-4)
-    t_b, s_b = t_a.copy(), s_a.copy()
-    found = np.zeros(plen.shape, bool)
+    def s(t, pp, rr):
+        q = [a + t * b for a, b in zip(pp, rr)]
+        return np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) - _lookup_xyz(distance, *q)
+
+    # the bracket [t_a, t_b] of each ray that crosses; open_*: the rays still unresolved
+    t_a, s_a, t_b, s_b = (np.zeros_like(plen) for _ in range(4))
+    rays = np.arange(len(plen))
+    open_p, open_r, open_len = p, r, plen
+    open_t, open_s = np.zeros_like(plen), np.minimum(s(np.zeros_like(plen), p, r), -1e-4).astype(dtype)
     for k in range(STEPS):
-        t_k = plen * STEP_START * 2.0 ** k
-        s_k = s(t_k)
-        newly = ~found & (s_k > 0)
-        t_b, s_b = np.where(newly, t_k, t_b), np.where(newly, s_k, s_b)
-        before = ~found & ~newly
-        t_a, s_a = np.where(before, t_k, t_a), np.where(before, s_k, s_a)
-        found |= newly
+        if not len(rays):
+            break
+        t_k = open_len * (STEP_START * 2.0 ** k)
+        s_k = s(t_k, open_p, open_r)
+        crossed = s_k > 0
+        ends = rays[crossed]
+        t_a[ends], s_a[ends], t_b[ends], s_b[ends] = open_t[crossed], open_s[crossed], t_k[crossed], s_k[crossed]
+        stay = ~crossed
+        rays, open_len, open_t, open_s = rays[stay], open_len[stay], t_k[stay], s_k[stay]
+        open_p, open_r = [c[stay] for c in open_p], [c[stay] for c in open_r]
+    found = np.ones(len(plen), bool)
+    found[rays] = False
+    hits = np.flatnonzero(found)
+    hit_p, hit_r = [c[hits] for c in p], [c[hits] for c in r]
+    ta, sa, tb, sb = t_a[hits], s_a[hits], t_b[hits], s_b[hits]
     for _ in range(SECANT_STEPS):
-        t_m = t_a + (t_b - t_a) * s_a / np.minimum(s_a - s_b, -1e-9)
-        s_m = s(t_m)
+        t_m = ta + (tb - ta) * sa / np.minimum(sa - sb, -1e-9)
+        s_m = s(t_m, hit_p, hit_r)
         hit = s_m > 0
-        t_b, s_b = np.where(hit, t_m, t_b), np.where(hit, s_m, s_b)
-        t_a, s_a = np.where(hit, t_a, t_m), np.where(hit, s_a, s_m)
-    t = t_a + (t_b - t_a) * s_a / np.minimum(s_a - s_b, -1e-9)
-    point = p + t[..., None] * r_dir
-    reach = np.linalg.norm(point, axis=-1)
-    look = np.where(found[..., None], point, r_dir)
-    ratio = np.where(found, np.clip(t / np.maximum(reach, 1e-6), 0.0, 1.0), 1.0)
-    return look / np.linalg.norm(look, axis=-1, keepdims=True), ratio
+        tb, sb = np.where(hit, t_m, tb), np.where(hit, s_m, sb)
+        ta, sa = np.where(hit, ta, t_m), np.where(hit, sa, s_m)
+    t = ta + (tb - ta) * sa / np.minimum(sa - sb, -1e-9)
+    point = [a + t * b for a, b in zip(hit_p, hit_r)]
+    reach = np.sqrt(point[0] * point[0] + point[1] * point[1] + point[2] * point[2])
+    look = np.stack(r, axis=-1)
+    look[hits] = np.stack(point, axis=-1) / np.maximum(reach, 1e-30)[:, None]
+    ratio = np.ones(len(plen), dtype)
+    ratio[hits] = np.clip(t / np.maximum(reach, 1e-6), 0.0, 1.0)
+    return look.reshape(*shape, 3), ratio.reshape(shape)

@@ -26,7 +26,7 @@ from ...addon.ibl import distance as distance_maps
 from ...addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, MapSettings, compute_maps,
                                prepare_environment, write_maps)
-from ..common import GEOMETRY_TYPES
+from ..common import GEOMETRY_TYPES, addon_preferences
 from ..phantom_surface import apply_phantom_surfaces
 from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin,
                      renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
@@ -388,8 +388,9 @@ class ProbeBake:
         offsets = irradiance_grid.grid_points(lo, hi, count) - origin
         radiance, _ = prepare_environment(env)
         height = int(settings.heights["diffuse"])
+        prefs = addon_preferences(self.context)
         maps = irradiance_grid.irradiance_maps(radiance, self._renderer.distance[0], offsets, height,
-                                               DIFFUSE_LMAX_EXACT)
+                                               DIFFUSE_LMAX_EXACT, workers=prefs.threads if prefs else None)
         irradiance_grid.write_grid(folder, irradiance_grid.atlas(maps), key_frame)
         return {irradiance_grid.RECORD_KEY: {"lo": [float(x) for x in lo], "hi": [float(x) for x in hi],
                                              "points": count, "height": height}}
