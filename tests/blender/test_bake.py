@@ -714,3 +714,29 @@ def test_small_probe_renders_with_more_samples_and_the_scene_keeps_its_own(bpy_c
         bpy.app.handlers.render_pre.remove(record)
     assert seen and set(seen) == {samples_for(2, 32)} == {4}
     assert scene.cycles.samples == 7
+
+
+def test_every_probe_render_sees_the_scene_world(bpy_clean, tmp_path):
+    """The distance map's render reads the sky from the film's alpha rather than a world of its
+    own: a world swapped in and out made Cycles rebuild the scene world's light-importance map
+    at every probe (docs/bench/bake.md). The distance map still says FAR towards the sky."""
+    from platelight.addon.exr_io import read_exr
+    from platelight.addon.ibl.distance import FAR
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5), height=32, samples=2)
+    add_plane(bpy, "Floor", (0, 0, 0), size=8, color=(0.5, 0.5, 0.5), phantom=True)
+    add_sphere(bpy, "Sphere", (0, 0, 0.5), radius=0.5, color=(1, 1, 1))
+    worlds = []
+
+    def record(render_scene, *_):
+        worlds.append(render_scene.world.name)
+    bpy.app.handlers.render_pre.append(record)
+    try:
+        bake(bpy, all_objects=True, cull=False)
+    finally:
+        bpy.app.handlers.render_pre.remove(record)
+    assert len(worlds) >= 2 and set(worlds) == {scene.world.name}      # the probe and its distance map
+    distance = read_exr(tmp_path / "platelight_maps" / "Sphere" / "distance.exr")[..., 0]
+    rows = distance.shape[0]
+    assert np.all(distance[: rows // 4] == FAR)                  # the sky above
+    assert np.all(distance[-rows // 4:] < 10.0)                 # the floor below
