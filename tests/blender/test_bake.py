@@ -695,6 +695,20 @@ def test_the_probes_sun_is_baked_apart_and_shaded_through_the_lobe(bpy_clean, tm
     assert not list(folder.glob("*_sunless*")) and "sun" not in json.loads((folder / "bake.json").read_text())
 
 
+def _bake_seeing(bpy, what):
+    """Bake every object; returns ``what(scene)`` as each of the bake's renders starts."""
+    seen = []
+
+    def record(render_scene, *_):
+        seen.append(what(render_scene))
+    bpy.app.handlers.render_pre.append(record)
+    try:
+        bake(bpy, all_objects=True, cull=False)
+    finally:
+        bpy.app.handlers.render_pre.remove(record)
+    return seen
+
+
 def test_small_probe_renders_with_more_samples_and_the_scene_keeps_its_own(bpy_clean, tmp_path):
     """probe_size.samples_for: a 32-row probe at Probe Samples 2 renders at 4 spp; the scene's own
     render samples are back afterwards."""
@@ -703,15 +717,7 @@ def test_small_probe_renders_with_more_samples_and_the_scene_keeps_its_own(bpy_c
     scene = new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5), height=32, samples=2)
     scene.cycles.samples = 7
     add_sphere(bpy, "Sphere", (0, 0, 0), radius=0.5, color=(1, 1, 1))
-    seen = []
-
-    def record(render_scene, *_):
-        seen.append(render_scene.cycles.samples)
-    bpy.app.handlers.render_pre.append(record)
-    try:
-        bake(bpy, all_objects=True, cull=False)
-    finally:
-        bpy.app.handlers.render_pre.remove(record)
+    seen = _bake_seeing(bpy, lambda render_scene: render_scene.cycles.samples)
     assert seen and set(seen) == {samples_for(2, 32)} == {4}
     assert scene.cycles.samples == 7
 
@@ -726,15 +732,7 @@ def test_every_probe_render_sees_the_scene_world(bpy_clean, tmp_path):
     scene = new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5), height=32, samples=2)
     add_plane(bpy, "Floor", (0, 0, 0), size=8, color=(0.5, 0.5, 0.5), phantom=True)
     add_sphere(bpy, "Sphere", (0, 0, 0.5), radius=0.5, color=(1, 1, 1))
-    worlds = []
-
-    def record(render_scene, *_):
-        worlds.append(render_scene.world.name)
-    bpy.app.handlers.render_pre.append(record)
-    try:
-        bake(bpy, all_objects=True, cull=False)
-    finally:
-        bpy.app.handlers.render_pre.remove(record)
+    worlds = _bake_seeing(bpy, lambda render_scene: render_scene.world.name)
     assert len(worlds) >= 2 and set(worlds) == {scene.world.name}      # the probe and its distance map
     distance = read_exr(tmp_path / "platelight_maps" / "Sphere" / "distance.exr")[..., 0]
     rows = distance.shape[0]
