@@ -88,6 +88,10 @@ class ProbeRenderer:
         state.set(render, "use_motion_blur", False)
         # Only the active view layer: compositing setups add layers that hold things out.
         state.set(render, "use_single_layer", True)
+        # ...and enabled: Cycles ignores a disabled layer's material override, so the distance
+        # map's render showed the surfaces' own shading (headless, the context's layer is the
+        # first one, which setup_composite turns off).
+        state.set(self.view_layer, "use", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
         for attr, value in compat.still_image_format():

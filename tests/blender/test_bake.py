@@ -738,3 +738,23 @@ def test_every_probe_render_sees_the_scene_world(bpy_clean, tmp_path):
     rows = distance.shape[0]
     assert np.all(distance[: rows // 4] == FAR)                  # the sky above
     assert np.all(distance[-rows // 4:] < 10.0)                 # the floor below
+
+
+def test_a_disabled_view_layer_still_bakes_true_distances(bpy_clean, tmp_path):
+    """Headless (the CLI, a farm), the context's view layer is the first one, which
+    setup_composite turns off; Cycles ignores a disabled layer's material override, so the
+    distance map showed the floor's own shading (all FAR under a bright world: no parallax).
+    The bake enables the layer while it renders and turns it off again."""
+    from platelight.addon.exr_io import read_exr
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.5, 0.5, 0.5), height=32, samples=2)
+    add_plane(bpy, "Floor", (0, 0, 0), size=8, color=(0.5, 0.5, 0.5), phantom=True)
+    add_sphere(bpy, "Sphere", (0, 0, 0.5), radius=0.5, color=(1, 1, 1))
+    first = scene.view_layers[0]
+    scene.view_layers.new("Other")
+    first.use = False
+    with bpy.context.temp_override(view_layer=first):
+        bake(bpy, all_objects=True, cull=False)
+    assert first.use is False
+    distance = read_exr(tmp_path / "platelight_maps" / "Sphere" / "distance.exr")[..., 0]
+    np.testing.assert_allclose(distance[-1], 0.5, rtol=0.02)      # straight down: the floor, 0.5 m
