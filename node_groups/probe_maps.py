@@ -132,9 +132,10 @@ def bind_images(tree):
     kind, first = probe_maps_status(folder)
     path = bpy.path.abspath(folder) if folder else ""
     frame = first if kind == "sequence" else None
-    record = read_record(path, frame) if kind != "missing" else {}
-    sun = _steady_sun(path, record, kind == "sequence") if kind != "missing" else None
-    ladder = _ladder_on(path, record, frame, sun, kind == "sequence") if kind != "missing" else False
+    records = _frame_records(path, kind)
+    record = records.get(frame, {})
+    sun = _steady_sun(path, records)
+    ladder = _ladder_on(path, records, sun)
     for node in tree.nodes:
         name = node.get("platelight_map")
         if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
@@ -207,33 +208,42 @@ def _bind_parallax(tree, record):
 
 
 
-def _steady_sun(path, record, sequence):
+def _frame_records(path, kind) -> dict:
+    """{frame: bake record} of every frame the folder holds maps for, in order ({None: record}
+    for single-frame maps, {} when there are none): the group's switches are one for all frames,
+    so each must hold for every frame."""
+    if kind == "missing":
+        return {}
+    if kind == "single":
+        return {None: read_record(path, None)}
+    frames = sorted({f for numbers in _sequence_frames(path).values() for f in numbers})
+    return {frame: read_record(path, frame) for frame in frames}
+
+
+def _steady_sun(path, records):
     """The sun the group shades through the lobe: the bake record's, when the scene asks for it
     (scene.platelight.probe_sun_lobe), the bake wrote every sunless map beside its maps, and, over
     a baked sequence, every frame has the same sun (the group holds one; a sun that an object
     moves out of would otherwise shine on in frames whose maps no longer hold it). Else None:
     the maps keep their sun."""
-    if not _scene_setting("probe_sun_lobe"):
+    if not records or not _scene_setting("probe_sun_lobe"):
         return None
-    sun = sun_lobe.from_record(record)
+    sun = sun_lobe.from_record(next(iter(records.values())))
     if sun is None:
         return None
-    frames = _sequence_frames(path) if sequence else {}
-    for name in sun_lobe.SUNLESS_MAPS:
-        for frame in frames.get(name, [None]):
+    for frame, record in records.items():
+        for name in sun_lobe.SUNLESS_MAPS:
             present = os.path.isfile(os.path.join(path, map_filename(name, frame)))
             if present and not os.path.isfile(os.path.join(path, sun_lobe.sunless_filename(name, frame))):
                 return None
-    if sequence:
-        for frame in sorted({f for numbers in frames.values() for f in numbers}):
-            other = sun_lobe.from_record(read_record(path, frame))
-            if other is None or not (np.allclose(other.direction, sun.direction, atol=1e-4)
-                                     and np.allclose(other.rgb, sun.rgb, rtol=1e-3, atol=1e-6)):
-                return None
+        other = sun_lobe.from_record(record)
+        if other is None or not (np.allclose(other.direction, sun.direction, atol=1e-4)
+                                 and np.allclose(other.rgb, sun.rgb, rtol=1e-3, atol=1e-6)):
+            return None
     return sun
 
 
-def _ladder_on(path, record, frame, sun, sequence=False) -> bool:
+def _ladder_on(path, records, sun) -> bool:
     """Does the group read the view-dependent ladder? When the scene asks for it (Glossy Lobes,
     view_lobe.in_use), the bake wrote every rung, and the rungs lack the sun exactly when the
     group adds it through the lobe (a ladder baked sunless, read without the sun term, would lose
@@ -242,13 +252,12 @@ def _ladder_on(path, record, frame, sun, sequence=False) -> bool:
     rungs would read no image (black glossy lobes)."""
     scene = getattr(bpy.context, "scene", None)
     settings = getattr(scene, "platelight", None)
-    if settings is None or not view_lobe.in_use(settings.glossy_lobes, settings.sampling):
+    if not records or settings is None or not view_lobe.in_use(settings.glossy_lobes, settings.sampling):
         return False
-    frames = sorted({f for numbers in _sequence_frames(path).values() for f in numbers}) if sequence else [frame]
-    for each in frames:
-        if not all(os.path.isfile(os.path.join(path, f)) for f in view_lobe.ladder_filenames(each)):
+    for frame, record in records.items():
+        if not all(os.path.isfile(os.path.join(path, f)) for f in view_lobe.ladder_filenames(frame)):
             return False
-        sunless = view_lobe.record_sunless(record if each == frame else read_record(path, each))
+        sunless = view_lobe.record_sunless(record)
         if sunless is None or sunless != (sun is not None):
             return False
     return True

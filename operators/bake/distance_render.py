@@ -4,8 +4,8 @@ from the same centre with the same objects hidden.
 Blender 5.2 writes no Depth pass into the probe's EXR (checked: even a multilayer EXR held only
 Combined), so the distance is rendered as a colour: one 1-spp render where every surface emits
 Camera Data's View Distance (for a panoramic camera the radial distance from its centre) and the
-sky (transparent film) reads as FAR, at DISTANCE_SCALE times the probe's size (sharper silhouettes for almost nothing:
-a box's reflection IoU 0.81 at the probe's size, 0.87 at 4x), but no larger than
+sky (transparent film) reads as FAR, at DISTANCE_SCALE times the probe's size (sharper
+silhouettes for almost nothing: a box's reflection IoU 0.81 at the probe's size, 0.87 at 4x), but no larger than
 DISTANCE_MAX_HEIGHT unless the probe is: a probe sized to a large mirror on screen (1024 px
 high) would otherwise make a 4096 x 8192 map of 128 MiB."""
 from __future__ import annotations
