@@ -40,6 +40,8 @@ from support import compat  # noqa: E402
 
 W, H = 128, 72
 TRUTH_SAMPLES = int(os.environ.get("PLATELIGHT_BENCH_TRUTH_SPP", 512))
+# Rows kept from before rows recorded their truth's samples were scored against 256-spp truths.
+LEGACY_TRUTH_SAMPLES = 256
 HDRI = "city"
 CACHE = support.REPO / "bench_out" / "composite"
 MATERIALS = {
@@ -503,7 +505,7 @@ def main(out_dir: pathlib.Path) -> None:
                            psnr_shadow=pooled_psnr(images, truths, shadow_masks, peak),
                            psnr_all=pooled_psnr(images, truths, everything, peak),
                            object_px=int(obj_masks[0].sum()), shadow_px=int(shadow_masks[0].sum()),
-                           load=os.getloadavg()[0])
+                           truth_spp=TRUTH_SAMPLES, load=os.getloadavg()[0])
                 _put_row(rows, row)
                 print(row, flush=True)
                 rows_file.write_text(json.dumps(rows, indent=1))
@@ -528,9 +530,14 @@ def equal_time_and_error(rows, material, route, key):
     None where the catcher never gets that good within its sample counts). A speed-up is
     returned as a string "≤ N×" when this route is worse than the catcher's fastest point: the
     catcher would get there with fewer samples than were measured, so N is only an upper bound."""
-    ref = sorted((r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == SHOT_REFERENCE)
-    ours = [(r["shot_s"], r[key]) for r in rows if r["material"] == material and r["route"] == route]
-    if not ref or not ours:
+    ours = [r for r in rows if r["material"] == material and r["route"] == route]
+    if not ours:
+        return None, None
+    truth = truth_samples(ours[0])          # only rows scored against the same truth compare
+    ref = sorted((r["shot_s"], r[key]) for r in rows if r["material"] == material
+                 and r["route"] == SHOT_REFERENCE and truth_samples(r) == truth)
+    ours = [(r["shot_s"], r[key]) for r in ours if truth_samples(r) == truth]
+    if not ref:
         return None, None
     ref_t = np.log([t for t, _ in ref])
     ref_p = np.array([p for _, p in ref])
@@ -548,6 +555,10 @@ def equal_time_and_error(rows, material, route, key):
     if exact:
         return max(gains), max(exact)
     return max(gains), f"≤ {max(v for v, _ in speedups):.2f}×"
+
+
+def truth_samples(row) -> int:
+    return row.get("truth_spp", LEGACY_TRUTH_SAMPLES)
 
 
 LOAD_NOTE = os.environ.get("PLATELIGHT_BENCH_LOAD_NOTE", "")
@@ -575,7 +586,8 @@ def write_report(out_dir, rows):
         f"The shot: {SHOT_FRAMES} frames, the camera orbiting {ORBIT_DEGREES:.0f}° about the sphere; its "
         f"frames {RENDER_FRAMES[0]} and {RENDER_FRAMES[-1]} are rendered in one session (timed), frame(s) "
         f"{', '.join(map(str, SCORED_FRAMES))} scored. Truth: Cycles "
-        f"path-traced with the sphere there, {TRUTH_SAMPLES} spp, no denoiser, Filter Glossy 0; plate: the "
+        f"path-traced with the sphere there ({TRUTH_SAMPLES} spp in this run; each row's *truth* column "
+        "says which truth it was scored against), no denoiser, Filter Glossy 0; plate: the "
         "same without the sphere. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
         "over its shadow on the floor (truth > 3 % darker than the plate) and over the frame.",
         "",
@@ -608,12 +620,12 @@ def write_report(out_dir, rows):
         lines += ["", "**Machine load.** " + LOAD_NOTE + (
             f" The 1-minute load average (2 cores) when each row finished: median "
             f"{np.median(loads):.1f}, range {min(loads):.1f}–{max(loads):.1f}." if loads else "")]
-    lines += ["", "| scene | route | spp | bake | setup | first | warm | per frame | PSNR object | PSNR shadow | PSNR frame |",
-              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    lines += ["", "| scene | route | spp | bake | setup | first | warm | per frame | PSNR object | PSNR shadow | PSNR frame | truth spp |",
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['material']} | {r['route']} | {r['samples']} | {r['bake_s']:.1f} | "
                      f"{r['setup_s']:.1f} | {r['first_s']:.1f} | {r['warm_s']:.1f} | {r['shot_s']:.1f} | "
-                     f"{r['psnr_object']:.1f} | {r['psnr_shadow']:.1f} | {r['psnr_all']:.1f} |")
+                     f"{r['psnr_object']:.1f} | {r['psnr_shadow']:.1f} | {r['psnr_all']:.1f} | {truth_samples(r)} |")
     if rows:
         lines += ["", f"Mask sizes (frame 1 of the first scene): object {rows[0]['object_px']} px, "
                   f"shadow {rows[0]['shadow_px']} px."]
