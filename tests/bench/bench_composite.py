@@ -586,7 +586,7 @@ def write_report(out_dir, rows):
         f"The shot: {SHOT_FRAMES} frames, the camera orbiting {ORBIT_DEGREES:.0f}° about the sphere; its "
         f"frames {RENDER_FRAMES[0]} and {RENDER_FRAMES[-1]} are rendered in one session (timed), frame(s) "
         f"{', '.join(map(str, SCORED_FRAMES))} scored. Truth: Cycles "
-        f"path-traced with the sphere there ({TRUTH_SAMPLES} spp in this run; each row's *truth* column "
+        f"path-traced with the sphere there ({TRUTH_SAMPLES} spp in this run; each row's *truth spp* column "
         "says which truth it was scored against), no denoiser, Filter Glossy 0; plate: the "
         "same without the sphere. PSNR (dB, peak = the truth's 99.5th percentile) over the sphere, "
         "over its shadow on the floor (truth > 3 % darker than the plate) and over the frame.",
