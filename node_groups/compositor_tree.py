@@ -10,8 +10,11 @@ from .composite import build_differential_group
 from .redistortion import wire_redistortion
 
 
-def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows):
-    """The scene's compositor tree (rebuilt in place): plate + render layers -> group -> output."""
+def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows,
+                          denoise_cg):
+    """The scene's compositor tree (rebuilt in place): plate + render layers -> group -> output.
+    ``denoise_shadows``: OIDN on the shadow / local-scene passes; ``denoise_cg``: on the CG's
+    fully covered pixels."""
     group = build_differential_group()
     tree = compat.new_compositor_tree(scene, names.COMPOSITOR_TREE)
     nodes, links = tree.nodes, tree.links
@@ -85,13 +88,14 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         return mix.result
 
     cg_image = cg.outputs["Image"]
-    if denoise_shadows:
-        alpha_zero = compat.compositor_math(nodes, "COMPARE")
-        alpha_zero.location = (-450, 150)
-        links.new(cg.outputs["Alpha"], alpha_zero.inputs[0])
-        alpha_zero.inputs[1].default_value = 0.0
-        alpha_zero.inputs[2].default_value = 0.0
-        cg_image = denoised_unless(cg_image, alpha_zero.outputs[0], (-300, 100))
+    if denoise_cg:
+        # Only where the CG covers the pixel: OIDN knows no alpha, so on an edge it mixed the
+        # transparent black in and left a dark rim (measured: frame -0.3 to -1.5 dB).
+        partly_covered = compat.compositor_math(nodes, "LESS_THAN")
+        partly_covered.location = (-450, 150)
+        links.new(cg.outputs["Alpha"], partly_covered.inputs[0])
+        partly_covered.inputs[1].default_value = 1.0
+        cg_image = denoised_unless(cg_image, partly_covered.outputs[0], (-300, 100))
     links.new(cg_image, diff.inputs["CG"])
     if method in ("CATCHER", "LAYERED"):
         source = cg

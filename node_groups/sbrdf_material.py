@@ -37,6 +37,13 @@ def sbrdf_node(material):
     return None
 
 
+def shaded_by_sbrdf(ob) -> bool:
+    """Does every material slot of ``ob`` hold a PlateLight SBRDF material? Camera rays then see
+    only probe look-ups, so its pixels are noise-free up to their anti-aliasing."""
+    slots = [slot.material for slot in getattr(ob, "material_slots", ())]
+    return bool(slots) and all(sbrdf_node(material) is not None for material in slots)
+
+
 def probe_node(material):
     if material is None or material.node_tree is None:
         return None

@@ -27,10 +27,19 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 from .. import compat
 from ..addon import names
 from ..node_groups.compositor_tree import build_compositor_tree
+from ..node_groups.sbrdf_material import shaded_by_sbrdf
+from .bake.inputs import wants_sharp_probe
 from .baked_shadows import baked_is_current
 from .common import classify_objects, find_plate_image, set_plate_colour_management
 from .eevee_check import NO_GL_SENTENCE, eevee_available
 from .phantom_surface import apply_phantom_surfaces
+
+
+def smooth_without_denoiser(ob) -> bool:
+    """Is ``ob``'s image smooth at a few samples? An SBRDF object without a sharp reflection shows
+    blurred probe look-ups only: OIDN on it gained nothing and darkened its edges (docs/decisions.md).
+    A sharp reflection's sub-pixel detail, and a path-traced object's noise, it does smooth."""
+    return shaded_by_sbrdf(ob) and not wants_sharp_probe(ob)
 
 
 def _collection(scene, name):
@@ -146,9 +155,18 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
     )
     denoise_shadows: BoolProperty(
         name="Denoise",
-        description="Run OpenImageDenoise on the CG and on the shadow/local-scene passes before "
-        "dividing (smooth at few samples); pixels the CG does not reach keep their raw, exact values",
+        description="Run OpenImageDenoise on the shadow/local-scene passes before dividing (smooth "
+        "at few samples), and on the CG's inside where a CG object is path-traced or shows a sharp "
+        "reflection (other SBRDF materials are smooth: denoising only darkened their edges); pixels "
+        "the CG does not reach keep their raw, exact values",
         default=True,
+    )
+    baked_samples: IntProperty(
+        name="Baked Shadow Samples",
+        description="Samples of the layer showing the baked shadows (Baked Shadows method): the "
+        "bake is noise-free, so one per pixel serves; raise it to anti-alias a shadow that crosses "
+        "a phantom's outline",
+        default=1, min=1, max=1 << 20,
     )
     samples: IntProperty(
         name="Samples",
@@ -261,8 +279,8 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                 shadows.samples = 0
                 shadows.material_override = None
                 _configure_layer(shadows, cg_coll, phantom_coll, "indirect", False)
-            else:   # the phantoms emit the baked ratio: a few samples anti-alias their edges
-                shadows.samples = self.cg_samples
+            else:   # the phantoms emit the baked, noise-free ratio: one sample serves (measured)
+                shadows.samples = self.baked_samples
                 shadows.material_override = baked
                 _configure_layer(shadows, cg_coll, phantom_coll, "excluded", False)
         used = {"CATCHER": {names.LAYER_CG}, "LAYERED": {names.LAYER_CG, names.LAYER_SHADOWS},
@@ -275,8 +293,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             configure_eevee(scene)
         if context.window is not None:
             context.window.view_layer = cg_layer
+        denoise_cg = self.denoise_shadows and not all(smooth_without_denoiser(ob) for ob in cg)
         build_compositor_tree(scene, plate_image, method, self.ratio_form, self.shadow_clamp,
-                              self.denoise_shadows)
+                              self.denoise_shadows, denoise_cg)
 
         if method == "BAKED":
             if current is None:         # BAKED asked for by name: not hashed yet

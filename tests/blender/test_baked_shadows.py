@@ -53,6 +53,9 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
     capfd.readouterr()
     assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=4) == {"FINISHED"}
     assert "do not match" not in capfd.readouterr().out
+    # the baked ratio is noise-free: its layer renders one sample per pixel (checked below)
+    layers = {layer.name: layer.samples for layer in scene.view_layers if layer.use}
+    assert sorted(layers.values()) == [1, 4], layers
     # nothing changed: a second bake renders nothing
     renders = probe_renders()
     assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}

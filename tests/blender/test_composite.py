@@ -211,13 +211,56 @@ def test_cg_blur_softens_edges_and_keeps_energy(bpy_clean, tmp_path):
     assert edge_soft > edge_sharp + 60
 
 
+def _denoised_sources(tree):
+    """(render layer, output) feeding each Denoise node of the compositor tree."""
+    return {(node.inputs["Image"].links[0].from_node.name, node.inputs["Image"].links[0].from_socket.name)
+            for node in tree.nodes if node.bl_idname == "CompositorNodeDenoise"}
+
+
 @pytest.mark.parametrize("method", ["CATCHER", "DIFFERENTIAL"])
 def test_shadow_passes_are_denoised_by_default(bpy_clean, tmp_path, method):
-    """The README's steps take every default: the shadow (or local-scene) passes and the CG go
-    through OpenImageDenoise unless the artist turns it off (a merge once turned it off)."""
+    """The README's steps take every default: the shadow (or local-scene) passes go through
+    OpenImageDenoise unless the artist turns it off (a merge once turned it off), and so does a
+    path-traced CG or a sharp reflection; an SBRDF CG of blurred look-ups is not (it only lost its edges)."""
     bpy = bpy_clean
+    names = importlib.import_module(f"{support.EXT_MODULE}.addon.names")
+    sm = importlib.import_module(f"{support.EXT_MODULE}.node_groups.sbrdf_material")
     scene, _plate = build_scene(bpy, tmp_path, method)          # setup_composite's defaults
-    tree = compat().compositor_tree(scene)
-    assert any(node.bl_idname == "CompositorNodeDenoise" for node in tree.nodes)
+    passes = {"CATCHER": {(names.LAYER_CG, "Shadow Catcher")},
+              "DIFFERENTIAL": {(names.LAYER_LOCAL, "Image"), (names.LAYER_WITHOUT, "Image")}}[method]
+    cg_image = (names.LAYER_CG, "Image")
+    assert _denoised_sources(compat().compositor_tree(scene)) == passes | {cg_image}
+    sphere = scene.objects["Sphere"]
+    sm.apply_sbrdf_material(sphere)                # glossiness 0.5: blurred look-ups only
+    assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
+    assert _denoised_sources(compat().compositor_tree(scene)) == passes
+    sm.apply_sbrdf_material(sphere, "chrome")      # a sharp reflection: its detail aliases
+    assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
+    assert _denoised_sources(compat().compositor_tree(scene)) == passes | {cg_image}
+    sm.apply_sbrdf_material(sphere)
+    sphere.data.materials.append(compat().new_material("Plain"))      # a second, path-traced slot
+    assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
+    assert _denoised_sources(compat().compositor_tree(scene)) == passes | {cg_image}
     assert bpy.ops.platelight.setup_composite(method=method, denoise_shadows=False) == {"FINISHED"}
     assert not any(node.bl_idname == "CompositorNodeDenoise" for node in compat().compositor_tree(scene).nodes)
+
+
+def test_denoised_cg_keeps_its_edge_pixels_raw(bpy_clean, tmp_path):
+    """OIDN knows no alpha: on the CG's edge it mixed in the transparent black around it (a dark
+    rim). A path-traced CG is denoised where it covers the pixel; its edge pixels stay as rendered."""
+    bpy = bpy_clean
+    names = importlib.import_module(f"{support.EXT_MODULE}.addon.names")
+    compositor_tree = importlib.import_module(f"{support.EXT_MODULE}.node_groups.compositor_tree")
+    scene, _plate = build_scene(bpy, tmp_path, "CATCHER", samples=4)
+    tree = compat().compositor_tree(scene)
+    raw = compositor_tree.float_exr_file_output(tree, "Raw CG", str(tmp_path / "raw") + "/", ("Raw",), (400, -600))
+    tree.links.new(tree.nodes[names.LAYER_CG].outputs["Image"], raw.inputs["Raw"])
+    _out, passes = render_with_passes(bpy, scene, tmp_path)
+    from platelight.addon.exr_io import read_exr
+
+    rendered = read_exr(compositor_tree.pass_output_path(scene, str(tmp_path / "raw"), "Raw"), "RGBA")
+    alpha = rendered[..., 3]
+    edge, inside = (alpha > 0) & (alpha < 1), alpha == 1
+    assert edge.sum() > 20 and inside.sum() > 200
+    np.testing.assert_allclose(passes["CG"][..., :3][edge], rendered[..., :3][edge], atol=1e-6)
+    assert np.abs(passes["CG"][..., :3][inside] - rendered[..., :3][inside]).max() > 1e-3   # denoised
