@@ -593,7 +593,7 @@ def write_report(out_dir, rows):
         "",
         "Routes. *catcher*: what Blender users do today, as Cycles documents it: Principled sphere, "
         "the floor (and box) as shadow catchers, the plate times the Shadow Catcher pass, then the CG "
-        "over it, OIDN on the CG and the catcher pass (PlateLight's compositor group does exactly "
+        "over it, OIDN on the catcher pass and on the CG where it covers the pixel (PlateLight's compositor group does exactly "
         "this). *platelight*: `setup_composite`'s defaults with the sphere converted to the "
         "PlateLight SBRDF and shaded from its own probe (one bake at the scene's default probe "
         "samples, sized to the sphere on screen, serves the shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
