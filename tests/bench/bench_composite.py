@@ -597,7 +597,7 @@ def write_report(out_dir, rows):
         "this). *platelight*: `setup_composite`'s defaults with the sphere converted to the "
         "PlateLight SBRDF and shaded from its own probe (one bake at the scene's default probe "
         "samples, sized to the sphere on screen, serves the shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
-        "specular look-ups; shadow pass denoised, the CG not (the SBRDF is noise-free). *platelight baked*: the same sphere, the shot's "
+        "specular look-ups; shadow pass denoised, the CG only where it covers the pixel and only for the sharp mirror (a smooth SBRDF is not). *platelight baked*: the same sphere, the shot's "
         "shadows baked once (`bake_shadows()` defaults: two 512-px panoramas at 16 spp, denoised; "
         "its time is in *bake*), `setup_composite(method='BAKED')` with the listed samples for the "
         "CG layer and its default one sample for the baked shadows' layer; no path tracing per frame. *platelight layered*: the CG in its own layer at "

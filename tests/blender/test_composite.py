@@ -13,7 +13,7 @@ from support import compat
 from composite_scene import (H, SPHERE_C, SPHERE_R, W, add_camera, add_plane, add_sphere, add_sun,  # noqa: F401
                              build_scene, grey_world, ground_points, in_shadow, inner, ops_module,
                              random_plate, render, render_with_passes, sphere_hit)
-from platelight.addon.exr_io import write_exr
+from platelight.addon.exr_io import read_exr, write_exr
 from platelight.addon.ibl.equirect import texel_directions
 
 @pytest.mark.parametrize("method", ["CATCHER", "DIFFERENTIAL"])
@@ -256,8 +256,6 @@ def test_denoised_cg_keeps_its_edge_pixels_raw(bpy_clean, tmp_path):
     raw = compositor_tree.float_exr_file_output(tree, "Raw CG", str(tmp_path / "raw") + "/", ("Raw",), (400, -600))
     tree.links.new(tree.nodes[names.LAYER_CG].outputs["Image"], raw.inputs["Raw"])
     _out, passes = render_with_passes(bpy, scene, tmp_path)
-    from platelight.addon.exr_io import read_exr
-
     rendered = read_exr(compositor_tree.pass_output_path(scene, str(tmp_path / "raw"), "Raw"), "RGBA")
     alpha = rendered[..., 3]
     edge, inside = (alpha > 0) & (alpha < 1), alpha == 1
