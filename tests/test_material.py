@@ -13,6 +13,7 @@ import pytest
 import sbrdf_reference
 import support  # noqa: F401  (makes `platelight` this checkout)
 from platelight.addon.errors import PlateLightError
+from platelight.addon.ibl import lobe_tilt
 from platelight.addon.material import json_io, principled, presets
 from platelight.addon.material.params import PARAMETERS, SBRDFParams
 
@@ -199,6 +200,9 @@ def test_metal_fresnel_knots_follow_the_ggx_albedo():
     principled.PrincipledValues(base_color=(0.95, 0.64, 0.54), metallic=1.0, roughness=0.1),
     principled.PrincipledValues(base_color=(1, 1, 1), transmission=1.0, roughness=0.0, ior=1.45),
     principled.PrincipledValues(emission_color=(1, 0.5, 0.2), emission_strength=5.0),
+    # rougher than the diffuse map: the roughness comes back from the peak's pull to the normal
+    principled.PrincipledValues(base_color=(0.7, 0.7, 0.7), roughness=1.0),
+    principled.PrincipledValues(base_color=(0.9, 0.6, 0.2), metallic=1.0, roughness=0.8),
 ])
 def test_principled_round_trip(values):
     s = principled.principled_to_sbrdf(values)
@@ -209,6 +213,25 @@ def test_principled_round_trip(values):
     assert back.transmission == pytest.approx(values.transmission)
     assert back.ior == pytest.approx(values.ior)
     assert back.emission_strength == values.emission_strength
+    assert back.anisotropic == 0.0
+
+
+def test_a_rough_lobe_peaks_at_the_normal():
+    """Up to the diffuse map's roughness the peak is the mirror direction (Cx = Cy = -1); beyond
+    it the peak is pulled to the normal, all the way at roughness 1 (Cx = Cy = 0). Brute force:
+    the centroid of the light a GGX lobe reflects (D(h) G2, directions above the horizon) climbs
+    towards N as the roughness grows past the diffuse map's, and at roughness 1 it is N at every
+    view, so no view-dependent direction can serve that lobe better than the normal."""
+    knot = float(principled.maps.ROUGHNESS_KNOTS[0])
+    for roughness, pull in ((0.3, 0.0), (knot, 0.0), ((knot + 1) / 2, 0.5), (1.0, 1.0)):
+        s = principled.principled_to_sbrdf(principled.PrincipledValues(roughness=roughness))
+        assert (s.cx, s.cy, s.cz) == pytest.approx((pull - 1.0, pull - 1.0, 1.0)), roughness
+        assert s.glossiness == pytest.approx(principled.roughness_to_glossiness(roughness))
+    for mu in (0.1, 0.4, 0.8):
+        elevations = [np.degrees(np.arcsin(lobe_tilt.kept_lobe_centroid(r, mu, 128)[2]))
+                      for r in (knot, (knot + 1) / 2, 1.0)]
+        assert elevations[0] < elevations[1] < elevations[2], mu
+        assert elevations[2] > 89.0, mu
 
 
 def test_principled_mapping_values():
