@@ -21,6 +21,10 @@ Mapping (documented in docs/sbrdf.md):
     diffuse at its rim.
   - a metal: c = 1 and the exponent of the dielectric's normalised rise (Schlick's 5 polished,
     about 100 rough), which follows a roughness-0.3 copper within 2 % down to cos 0.25.
+  - a metal's ρs is base × E(1)/F0 too: W + F_avg (1 - W), W white GGX's single-scattering
+    albedo head-on, F_avg = F0 + (1 - F0)/21 (what Cycles' multiscatter gives back); 1 polished,
+    0.80 for F0 0.7 at roughness 1. Without it a roughness-1 metal sphere came out 23 % too
+    bright (docs/decisions.md, "A rough metal reflects less than its F0 head-on").
   Blended by metallic.
 - rougher than the diffuse map (r > 0.644, glossiness 0): the lobe's peak is pulled from the
   mirror direction to the normal, Cx = Cy = -(1 - t), t = (r - 0.644) / (1 - 0.644), because a
@@ -51,6 +55,9 @@ METAL_THRESHOLD = 0.2
 # test_metal_fresnel_knots_follow_the_ggx_albedo (brute force); its Fresnel Peak is 1.
 _FALLOFF_ROUGHNESS = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0])
 _FALLOFF_EXPONENT = np.array([5.0, 5.4, 6.9, 10.9, 23.2, 58.6, 86.9, 102.4, 118.1])
+# White GGX's single-scattering albedo head-on (Fresnel 1) at _FALLOFF_ROUGHNESS, by
+# tests/test_material.py::test_metal_head_on_follows_the_multiscatter_albedo (brute force).
+_WHITE_HEAD_ON = np.array([1.0, 1.0, 0.991, 0.968, 0.916, 0.825, 0.698, 0.555, 0.307])
 # A dielectric's (IOR 1.5, multiscatter GGX): Fresnel Peak c, exponent k and E(1) / F0, fitted by
 # tests/test_material.py::test_dielectric_fresnel_knots_follow_the_ggx_albedo (brute force).
 _DIELECTRIC_ROUGHNESS = np.linspace(0.0, 1.0, 11)
@@ -108,6 +115,25 @@ def fresnel_terms(roughness: float, metallic: float) -> tuple[float, float, floa
     return 1.0 / (1.0 + exponent), (1.0 - metallic) * peak_d + metallic, head_on
 
 
+def metal_head_on(base, roughness: float):
+    """E(1) / F0 of a metal of reflectance ``base`` (per channel): Cycles' multiscatter GGX gives
+    back what single scattering loses (1 - W, W its white albedo) times the average Fresnel, so a
+    rough metal reflects W + F_avg (1 - W) of F0 head-on (0.80 for F0 0.7 at roughness 1)."""
+    base = np.asarray(base, dtype=float)
+    white = float(np.interp(roughness, _FALLOFF_ROUGHNESS, _WHITE_HEAD_ON))
+    return white + (base + (1.0 - base) / 21.0) * (1.0 - white)
+
+
+def _metal_base(specular, roughness: float) -> np.ndarray:
+    """The base whose base * metal_head_on(base, roughness) is ``specular`` (its quadratic's root)."""
+    specular = np.asarray(specular, dtype=float)
+    lost = 1.0 - float(np.interp(roughness, _FALLOFF_ROUGHNESS, _WHITE_HEAD_ON))
+    a, b = lost * 20.0 / 21.0, 1.0 - lost + lost / 21.0
+    if a < 1e-12:
+        return specular / b
+    return (-b + np.sqrt(b * b + 4.0 * a * specular)) / (2.0 * a)
+
+
 def peak_pull(roughness: float) -> float:
     """t in [0, 1]: how far a lobe of this roughness peaks from the mirror direction towards the
     normal (0 up to the diffuse map's roughness, 1 at roughness 1); Cx = Cy = -(1 - t)."""
@@ -135,7 +161,7 @@ def principled_to_sbrdf(p: PrincipledValues) -> SBRDFParams:
     f0 = _f0(max(p.ior, 1.0), p.specular_ior_level)
     roughness = min(max(p.roughness, 0.0), 1.0)
     phi, peak, head_on = fresnel_terms(roughness, metal)
-    specular = (1.0 - metal) * f0 * head_on + metal * base
+    specular = (1.0 - metal) * f0 * head_on + metal * base * metal_head_on(base, roughness)
     lafortune = -(1.0 - peak_pull(roughness))
     alpha = p.alpha * (1.0 - p.transmission * (1.0 - metal))
     return SBRDFParams(
@@ -158,7 +184,7 @@ def sbrdf_to_principled(s: SBRDFParams) -> PrincipledValues:
     diff = np.asarray(s.diffuse_albedo, dtype=float)
     metal = 1.0 if spec.max() > METAL_THRESHOLD and spec.max() >= diff.max() else 0.0
     if metal:
-        base, level = spec, 0.5
+        base, level = _metal_base(spec, roughness_of(s)), 0.5
     else:
         base = diff
         f0_ior = _f0(max(s.ior, 1.0), 0.5) * dielectric_fresnel(roughness_of(s))[2]
