@@ -58,6 +58,8 @@ _FALLOFF_EXPONENT = np.array([5.0, 5.4, 6.9, 10.9, 23.2, 58.6, 86.9, 102.4, 118.
 # White GGX's single-scattering albedo head-on (Fresnel 1) at _FALLOFF_ROUGHNESS, by
 # tests/test_material.py::test_metal_head_on_follows_the_multiscatter_albedo (brute force).
 _WHITE_HEAD_ON = np.array([1.0, 1.0, 0.991, 0.968, 0.916, 0.825, 0.698, 0.555, 0.307])
+# The diffuse map's roughness: every rougher lobe has glossiness 0 and its peak pulled to N.
+_DIFFUSE_ROUGHNESS = float(maps.ROUGHNESS_KNOTS[0])
 # A dielectric's (IOR 1.5, multiscatter GGX): Fresnel Peak c, exponent k and E(1) / F0, fitted by
 # tests/test_material.py::test_dielectric_fresnel_knots_follow_the_ggx_albedo (brute force).
 _DIELECTRIC_ROUGHNESS = np.linspace(0.0, 1.0, 11)
@@ -137,8 +139,7 @@ def _metal_base(specular, roughness: float) -> np.ndarray:
 def peak_pull(roughness: float) -> float:
     """t in [0, 1]: how far a lobe of this roughness peaks from the mirror direction towards the
     normal (0 up to the diffuse map's roughness, 1 at roughness 1); Cx = Cy = -(1 - t)."""
-    knot = float(maps.ROUGHNESS_KNOTS[0])
-    return float(min(max((roughness - knot) / (1.0 - knot), 0.0), 1.0))
+    return float(min(max((roughness - _DIFFUSE_ROUGHNESS) / (1.0 - _DIFFUSE_ROUGHNESS), 0.0), 1.0))
 
 
 def roughness_of(s: SBRDFParams) -> float:
@@ -146,8 +147,7 @@ def roughness_of(s: SBRDFParams) -> float:
     diffuse map's the one whose peak_pull() made the (equal) Cx and Cy."""
     roughness = glossiness_to_roughness(s.glossiness)
     if s.glossiness <= 0.0 and s.cx == s.cy and -1.0 < s.cx <= 0.0:
-        knot = float(maps.ROUGHNESS_KNOTS[0])
-        roughness = knot + (1.0 + s.cx) * (1.0 - knot)
+        roughness = _DIFFUSE_ROUGHNESS + (1.0 + s.cx) * (1.0 - _DIFFUSE_ROUGHNESS)
     return float(roughness)
 
 
