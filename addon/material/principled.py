@@ -167,7 +167,7 @@ def principled_to_sbrdf(p: PrincipledValues) -> SBRDFParams:
     return SBRDFParams(
         diffuse_albedo=tuple(float(c) for c in base * (1.0 - metal)),
         specular_albedo=tuple(float(c) for c in specular),
-        glossiness=roughness_to_glossiness(p.roughness),
+        glossiness=roughness_to_glossiness(roughness),
         cx=lafortune, cy=lafortune, cz=1.0,
         fresnel_falloff=phi, fresnel_peak=peak,
         tangent_rotation=2.0 * math.pi * (p.anisotropic_rotation % 1.0),
