@@ -4,7 +4,8 @@ from __future__ import annotations
 import dataclasses
 
 from .. import compat
-from ..addon.material.principled import PrincipledValues
+from ..addon.errors import PlateLightError
+from ..addon.material.principled import PrincipledValues, nonfinite_fields
 
 # PrincipledValues field -> Principled BSDF input socket (Blender 4.x / 5.0 names).
 SOCKETS = {
@@ -38,6 +39,18 @@ def read_principled(material) -> PrincipledValues | None:
             value = node.inputs[socket].default_value
             values[field] = tuple(value[:3]) if field.endswith("color") else float(value)
     return PrincipledValues(**values)
+
+
+def checked_principled(material) -> PrincipledValues | None:
+    """read_principled(), refused with one sentence where a value is NaN: converting it would put
+    NaN into the SBRDF and every pixel it shades."""
+    values = read_principled(material)
+    bad = nonfinite_fields(values) if values is not None else []
+    if bad:
+        where = f"{material.name}'s Principled BSDF" if principled_node(material) else material.name
+        raise PlateLightError(f"{where} has {', '.join(SOCKETS[field] for field in bad)} set to "
+                              "NaN; give it a number and convert again.")
+    return values
 
 
 def build_principled_material(name: str, values: PrincipledValues):

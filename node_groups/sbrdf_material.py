@@ -149,13 +149,17 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
     converted (Principled settings mapped where they can be) into new materials, the originals
     kept with a fake user so nothing is lost."""
     from ..addon.material.principled import principled_to_sbrdf
-    from .principled_nodes import read_principled
+    from .principled_nodes import checked_principled
 
     scene = scene or bpy.context.scene
     check_editable(obj)                     # before anything is created
     folder, _status = resolve_probe_dir(obj, scene)
     if preset_name is not None:
         params = preset_params(preset_name)
+    # every slot read before anything changes: a refused one leaves the object as it was
+    sources = {} if params is not None else {
+        index: checked_principled(slot.material) for index, slot in enumerate(obj.material_slots)
+        if sbrdf_node(slot.material) is None}
     if not obj.material_slots:
         obj.data.materials.append(None)
     result = None
@@ -164,7 +168,7 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
         if sbrdf_node(material) is None:
             base = params
             if base is None:
-                principled = read_principled(material)
+                principled = sources.get(index)
                 base = principled_to_sbrdf(principled) if principled else SBRDFParams()
             name = f"{material.name} SBRDF" if material else f"{obj.name} SBRDF"
             new = build_material(name, folder, base, label=obj.name)

@@ -151,6 +151,13 @@ def roughness_of(s: SBRDFParams) -> float:
     return float(roughness)
 
 
+def nonfinite_fields(p: PrincipledValues) -> list[str]:
+    """The fields of ``p`` that hold NaN (a socket set from Python can; Blender stores an
+    infinity as the largest float, which converts like any large value)."""
+    return [field.name for field in dataclasses.fields(p)
+            if not np.all(np.isfinite(np.asarray(getattr(p, field.name), dtype=float)))]
+
+
 def _f0(ior: float, level: float) -> float:
     return min(((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level, 1.0)
 

@@ -92,6 +92,25 @@ def test_apply_sbrdf_poll_needs_an_object(bpy_clean):
         bpy.ops.platelight.apply_sbrdf()
 
 
+def test_a_nan_principled_value_is_refused_and_the_object_kept(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    ob = _sphere(bpy)
+    good, bad = _principled(bpy, "Good"), _principled(bpy, "Bad")
+    node = next(n for n in bad.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    node.inputs["Roughness"].default_value = float("nan")     # Blender stores it as it is
+    ob.data.materials.append(good)
+    ob.data.materials.append(bad)
+    materials, groups = set(bpy.data.materials), set(bpy.data.node_groups)
+    with pytest.raises(RuntimeError, match="Bad's Principled BSDF has Roughness set to NaN"):
+        bpy.ops.platelight.apply_sbrdf()
+    # the first slot, which could be converted, was not either: nothing half done
+    assert [slot.material for slot in ob.material_slots] == [good, bad]
+    assert set(bpy.data.materials) == materials and set(bpy.data.node_groups) == groups
+    node.inputs["Roughness"].default_value = 0.5
+    assert bpy.ops.platelight.apply_sbrdf() == {"FINISHED"}
+    assert all(_sm().sbrdf_node(slot.material) is not None for slot in ob.material_slots)
+
+
 def test_missing_maps_fall_back_to_world_maps(bpy_clean, tmp_path):
     bpy = bpy_clean
     bpy.context.scene.platelight.maps_dir = str(tmp_path)
