@@ -30,13 +30,15 @@ from ._build import VERSION_KEY, Graph, float_curve, io_nodes, knot_position, sy
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 9                          # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 10                         # 3: parallax-corrected specular look-ups (distance map)
                                      # 4: diffuse look-ups from the irradiance grid
                                      # 5: the grid's atlas read by Environment Textures (EEVEE)
                                      # 6: glossy look-ups narrowed by their footprint
                                      # 7: anisotropic look-ups along the Specular Spread
                                      # 8: the sun through the lobe, the other maps sunless
                                      # 9: the view-dependent ladder (glossy3, narrowed look-ups)
+                                     # 10: the sun's lobe normalised by A alone, every map but
+                                     #     the mirror's read sunless by the specular lobe
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
 SUN_NODES = (names.SUN_DIRECTION_NODE, names.SUN_COLOR_NODE, names.SUN_ANGLE_NODE)
@@ -547,9 +549,8 @@ def _irradiance_grid(g, direction):
 
 
 def _sun_highlight(g, inp):
-    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V)) (1 + F (1 - A) / A) of the group's sun
-    (its irradiance 0 when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas,
-    F the Specular Weight."""
+    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V) A) of the group's sun (its irradiance 0
+    when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas."""
     direction = _named_vector(g, names.SUN_DIRECTION_NODE)
     color = _named_vector(g, names.SUN_COLOR_NODE)
     angle = _named_value(g, names.SUN_ANGLE_NODE, 0.0)
@@ -582,13 +583,11 @@ def _sun_highlight(g, inp):
     # sun_lobe.albedo_roughness: the RMS alpha's roughness
     roughness = g.math("POWER", g.math("MULTIPLY", g.math("ADD", squared(split.outputs[0]), squared(split.outputs[1])),
                                        0.5), 0.25)
-    denominator = g.math("MULTIPLY", g.math("MULTIPLY", masking, g.math("MAXIMUM", mu_v, 1e-4)), 4.0)
+    # normalised by the lobe's albedo A, as the maps' lobes are
+    denominator = g.math("MULTIPLY", g.math("MULTIPLY", g.math("MULTIPLY", masking, g.math("MAXIMUM", mu_v, 1e-4)), 4.0),
+                         _lobe_albedo(g, roughness, mu_v))
     above = g.math("MULTIPLY", g.math("GREATER_THAN", mu_v, 0.0), g.math("GREATER_THAN", mu_l, 0.0))
-    # the energy single scattering loses, back in proportion to the specular weight (Fresnel)
-    lost = g.math("SUBTRACT", g.math("DIVIDE", 1.0, _lobe_albedo(g, roughness, mu_v)), 1.0)
-    regained = g.vmath("ADD", (1.0, 1.0, 1.0), g.vmath("SCALE", inp["Specular Weight"], scale=lost))
-    return g.vmath("MULTIPLY", g.vmath("SCALE", color, scale=g.math("MULTIPLY", above, g.math("DIVIDE", d, denominator))),
-                   regained)
+    return g.vmath("SCALE", color, scale=g.math("MULTIPLY", above, g.math("DIVIDE", d, denominator)))
 
 
 def _lobe_albedo(g, roughness, mu):
@@ -649,18 +648,12 @@ def _build(tree):
         term = blended(tap, specular_weights[1:], STREAK_MAPS)
         streak = term if streak is None else g.vmath("ADD", streak, term)
     streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
-    # The diffuse map, read once (a streak is far narrower than its lobe), with its sun and
-    # without it in proportion to the lobe's reflectance.
-    # sun_lobe.sunless_diffuse_part: the lobe's mean reflectance, clamped to [0, 1]
-    reflectance = g.vmath("DOT_PRODUCT", inp["Specular Weight"], (1 / 3, 1 / 3, 1 / 3))
-    sunless_part = g.math("MINIMUM", g.math("MAXIMUM", reflectance, 0.0), 1.0)
-    rough_map = g.mix("VECTOR", sunless_part, env("diffuse", specular_direction),
-                      env(sun_lobe.sunless_name("diffuse"), specular_direction))
+    # The diffuse map, read once (a streak is far narrower than its lobe), without its sun.
+    rough_map = env(sun_lobe.sunless_name("diffuse"), specular_direction)
     streak = g.vmath("ADD", streak, g.vmath("SCALE", rough_map, scale=specular_weights[0]))
     # The sun the sunless maps lack, through the lobe, for their share (view_lobe.sun_share).
     rungs = [specular_weights[view_lobe.LADDER.index(name)] for name in view_lobe.RUNGS]
-    sun_share = g.math("MULTIPLY_ADD", specular_weights[0], sunless_part,
-                       g.math("ADD", g.math("ADD", rungs[0], rungs[1]), rungs[2]))
+    sun_share = g.math("ADD", specular_weights[0], g.math("ADD", g.math("ADD", rungs[0], rungs[1]), rungs[2]))
     streak = g.vmath("ADD", streak, g.vmath("SCALE", _sun_highlight(g, inp), scale=sun_share))
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], streak)
     refraction_weights = tent_weights(g, inp["Map Glossiness"])

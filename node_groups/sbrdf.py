@@ -30,15 +30,16 @@ import bpy
 from ..addon import names
 from ..addon.ibl.anisotropy import ASPECT_SCALE
 from ..addon.ibl.lobe_tilt import MU, TILT
-from ..addon.ibl.maps import GLOSSINESS_KNOTS, MAP_NAMES, ROUGHNESS_KNOTS
+from ..addon.ibl.maps import GLOSSINESS_KNOTS, MAP_NAMES, PULL_BELOW, ROUGHNESS_KNOTS
 from ..addon.material.params import PARAMETERS
 from ._build import VERSION_KEY, Graph, float_curve, io_nodes, sync_interface, tent_weights
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
 # 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt;
 # 4: Anisotropy input, Specular Spread output; 5: Lobe View, Lobe Tangent, Lobe Alphas outputs;
-# 6: Fresnel Peak input (existing instances get 1: their old look)
-VERSION = 6
+# 6: Fresnel Peak input (existing instances get 1: their old look); 7: the lobe's alphas widened
+# by the peak's pull at glossiness 0 (maps.pulled_roughness)
+VERSION = 7
 PHI_MIN = 1.0e-4
 
 # The lookup outputs, consumed by name by every "PlateLight Probe" group.
@@ -173,7 +174,7 @@ def _build(tree):
     fresnel = g.math("MULTIPLY", inp["Fresnel Peak"],
                      g.math("POWER", g.math("SUBTRACT", 1.0, cos_v), exponent))
     spec_albedo = g.mix("RGBA", fresnel, inp["Specular Albedo"], (1.0, 1.0, 1.0, 1.0))
-    narrow, streak, alphas = _anisotropy(g, inp["Glossiness"], inp["Anisotropy"], fresnel)
+    narrow, streak, alphas = _anisotropy(g, inp, fresnel)
     gloss = g.math("ADD", narrow, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, narrow), fresnel))
     falloff_f = g.math("ADD", falloff, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, falloff), fresnel))
     # The maps already hold the lobe's integral, so the paper's cosine g' darkens every rim (a
@@ -226,14 +227,20 @@ def _build(tree):
     gout.location = (200 * (g.column // 12 + 1), 0)
 
 
-def _anisotropy(g, glossiness, anisotropy, fresnel):
-    """anisotropy.narrow_glossiness and streak_slope in nodes, and the GGX alphas of the lobe
-    with Fresnel's glossiness n + (1 - n) f: (narrow glossiness, slope width, (alpha_t, alpha_b, 0))."""
-    amount = g.math("MINIMUM", g.math("MAXIMUM", anisotropy, 0.0), 1.0)
+def _anisotropy(g, inp, fresnel):
+    """anisotropy.narrow_glossiness and streak_slope in nodes, and the GGX alphas of the lobe:
+    the roughness of Fresnel's glossiness n + (1 - n) f, plus (1 - f) times what the peak's pull
+    adds at glossiness 0 (maps.pulled_roughness): (narrow glossiness, slope width, (alpha_t, alpha_b, 0))."""
+    glossiness = inp["Glossiness"]
+    amount = g.math("MINIMUM", g.math("MAXIMUM", inp["Anisotropy"], 0.0), 1.0)
     aspect = g.math("SQRT", g.math("MULTIPLY_ADD", amount, -ASPECT_SCALE, 1.0))
     roughness = float_curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS, glossiness)
     sharpened = g.math("ADD", glossiness, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, glossiness), fresnel))
-    alpha = g.math("POWER", float_curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS, sharpened), 2.0)
+    widest = g.math("MAXIMUM", g.math("ABSOLUTE", inp["Cx"]), g.math("ABSOLUTE", inp["Cy"]))
+    pull = g.math("MULTIPLY", g.math("SUBTRACT", 1.0, widest), g.math("LESS_THAN", glossiness, PULL_BELOW),
+                  clamp=True)
+    widened = g.math("MULTIPLY", g.math("MULTIPLY", pull, 1.0 - ROUGHNESS_KNOTS[0]), g.math("SUBTRACT", 1.0, fresnel))
+    alpha = g.math("POWER", g.math("ADD", float_curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS, sharpened), widened), 2.0)
     alphas = g.node("ShaderNodeCombineXYZ")
     g.link(g.math("DIVIDE", alpha, aspect), alphas.inputs["X"])
     g.link(g.math("MULTIPLY", alpha, aspect), alphas.inputs["Y"])

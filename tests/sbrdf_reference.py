@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from platelight.addon.ibl import anisotropy, sun_lobe, view_lobe
-from platelight.addon.ibl.maps import glossiness_to_roughness
+from platelight.addon.ibl.maps import glossiness_to_roughness, pulled_roughness
 from platelight.addon.ibl.lobe_tilt import tilt_offset
 
 ORDER = ("diffuse", "glossy1", "glossy2", "specular")
@@ -115,7 +115,7 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None, rungs=None):
     slope = anisotropy.streak_slope(p["glossiness"], amount) * (1 - f[..., 0])
     streak = anisotropy.spread(N, Tr, R, slope)
     sunless = sunless or {}
-    specular_maps = dict(maps, **{k: v for k, v in sunless.items() if k != "diffuse"})
+    specular_maps = dict(maps, **sunless)          # the specular lobe reads every map sunless
     peak_unit = _norm(peak)
     lobe_view = 2 * _dot(N, peak_unit) * N - peak_unit
     if rungs is None:
@@ -134,18 +134,17 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None, rungs=None):
     w_d = weights[0][..., None]
     specular = sum(sum(w[..., None] * bilinear(specular_maps[name], d)
                        for name, w in zip(view_lobe.LADDER[1:], weights[1:]) if name in specular_maps)
-                   for d in taps) / len(taps) + w_d * bilinear(maps["diffuse"], spec_dir)
-    if "diffuse" in sunless:
-        # the diffuse map read sunless in proportion to the lobe's mean reflectance
-        part = np.clip(np.mean(rho_s * g2, axis=-1, keepdims=True), 0.0, 1.0)
-        specular = specular + w_d * part * (bilinear(sunless["diffuse"], spec_dir) - bilinear(maps["diffuse"], spec_dir))
+                   for d in taps) / len(taps) + w_d * bilinear(specular_maps["diffuse"], spec_dir)
     if sun is not None:
-        # GGX of the Fresnel-sharpened glossiness, seen from the view whose mirror is the peak
-        alpha = glossiness_to_roughness(p["glossiness"] + (1 - p["glossiness"]) * f[..., 0]) ** 2
+        # GGX of the Fresnel-sharpened glossiness (widened by the peak's pull at glossiness 0),
+        # seen from the view whose mirror is the peak
+        gloss = p["glossiness"]
+        widened = pulled_roughness(gloss, p["cx"], p["cy"]) - glossiness_to_roughness(gloss)
+        alpha = (glossiness_to_roughness(gloss + (1 - gloss) * f[..., 0]) + widened * (1 - f[..., 0])) ** 2
         aspect = anisotropy.aspect(amount)
-        share = view_lobe.sun_share(weights, rho_s * g2)
+        share = view_lobe.sun_share(weights)
         specular = specular + share[..., None] * sun_lobe.highlight(N, Tr, lobe_view, alpha / aspect,
-                                                                    alpha * aspect, sun, rho_s * g2)
+                                                                    alpha * aspect, sun)
     lr = lr + rho_s * g2 * specular
     refr = np.zeros_like(lr)
     dirs = [spec_dir, N, *taps]

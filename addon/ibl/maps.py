@@ -97,6 +97,17 @@ def glossiness_to_roughness(glossiness):
     return np.interp(glossiness, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS)
 
 
+PULL_BELOW = 1e-6           # the glossiness below which a pulled peak widens the lobe
+
+
+def pulled_roughness(glossiness, cx, cy):
+    """The GGX roughness a lobe stands for: its glossiness's, and at glossiness 0 (the diffuse
+    map's roughness, the widest a map holds) up to 1 as far as its Lafortune peak is pulled from
+    the mirror direction to N, 1 - max(|Cx|, |Cy|) (principled.peak_pull writes it this way)."""
+    pull = np.clip(1.0 - np.maximum(np.abs(cx), np.abs(cy)), 0.0, 1.0) * (np.asarray(glossiness) < PULL_BELOW)
+    return glossiness_to_roughness(glossiness) + pull * (1.0 - ROUGHNESS_KNOTS[0])
+
+
 def map_weights(glossiness: float) -> dict[str, float]:
     """tent_weights() of one glossiness, by map name."""
     return {name: float(w) for name, w in zip(MAP_NAMES, tent_weights(float(glossiness)))}

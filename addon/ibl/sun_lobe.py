@@ -7,20 +7,22 @@ picture: GGX's long tail gathers it from far off, a brushed lobe smears it into 
 grazing view stretches it. So the bake splits the probe (lights.split_sun: the sun's blob filled
 with the sky around it, energy kept) and writes, beside the four contract maps (unchanged), the
 diffuse, glossy1 and glossy2 maps of the probe *without* its sun (``<map>_sunless.exr``) and the
-sun in the bake record. The shader's specular look-ups read the sunless glossy maps, the mirror
-map (which keeps the sun) and the diffuse map sunless in proportion to the lobe's reflectance F,
-and add the sun through the lobe for that share:
+sun in the bake record. The shader's specular look-ups read the sunless diffuse and glossy maps
+and the mirror map (which keeps the sun), and add the sun through the lobe for their share:
 
-    S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2 + F w_diffuse) E D(h) G2(V, L) / (4 (N.V)) (1 + F (1 - A) / A)
+    S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2 + w_diffuse) E D(h) G2(V, L) / (4 (N.V) A)
 
 h the half vector of the sun direction L and the lobe's view V, D and G2 Principled's anisotropic
 GGX with Smith's height-correlated masking (alphas r^2 / aspect along the rotated tangent,
-r^2 aspect across it; addon/ibl/anisotropy.py), E the sun's irradiance (rgb, lights.py's units),
-A the lobe's directional albedo and F the specular weight: the energy single scattering loses comes
-back in proportion to Fresnel, as in Cycles' multiscatter GGX, so a metal's lobe integrates to 1
-as a map's lobe does and a rough dielectric's highlight stays dim (at roughness 1, dividing by A
-alone made the diffuse sphere's highlight 3x too bright: -0.9 dB). The alphas are widened by the
-sun's own size, so a narrow lobe shows a disc, not a point.
+r^2 aspect across it; addon/ibl/anisotropy.py; r the roughness of the glossiness and, at
+glossiness 0, of the peak's pull, maps.pulled_roughness), E the sun's irradiance (rgb, lights.py's
+units) and A the lobe's directional albedo: the lobe integrates to 1 as a map's lobe does, because
+the specular albedo already holds what masking takes from a rough lobe (a converted Principled's
+rho_s is its E(1), addon/material/principled.py). The alphas are widened by the sun's own size, so
+a narrow lobe shows a disc, not a point. (Until session 23 the diffuse map kept the sun for
+1 - F of the lobe, F its reflectance, and the lobe gave back only F (1 - A) / A: both were fitted
+when rho_s was still F0 and counted masking's loss twice since; docs/decisions.md, "The sun
+through a rough lobe, normalised once".)
 
 On a bare metal sphere under the bundled city HDRI (brute-force GGX of the whole HDRI as the
 truth; tests/bench/bench_sun_lobe.py, docs/bench/sun_lobe.md) this is the largest single gain of
@@ -42,9 +44,7 @@ from .maps import MAP_NAMES, MapSettings, compute_maps, map_filename, tent_weigh
 VERSION = 1                 # in the probe's hash: a bake before the sunless maps is baked again
 
 # The maps that lose the sun and where they are written; the mirror map keeps it (a mirror shows
-# its disc). The diffuse map read by a specular lobe loses it in proportion to the lobe's
-# reflectance (see sun_share): a metal's rough lobe gains most from the exact sun, a rough
-# dielectric's highlight read worse through GGX than from the diffuse map (docs/decisions.md).
+# its disc). A specular lobe reads them all sunless; the diffuse lobe reads the diffuse map with it.
 SUNLESS_MAPS = ("diffuse", "glossy1", "glossy2")
 SUNLESS_SUFFIX = "_sunless"
 RECORD_KEY = "sun"          # in the bake record: {"direction", "rgb", "angle"}
@@ -196,18 +196,10 @@ def albedo_roughness(alpha_t, alpha_b):
     return (0.5 * (np.asarray(alpha_t) ** 2 + np.asarray(alpha_b) ** 2)) ** 0.25
 
 
-def sunless_diffuse_part(reflectance) -> np.ndarray:
-    """How much of the diffuse map a specular lobe reads sunless: its mean reflectance F in [0, 1]
-    (the rest reads the diffuse map with its sun)."""
-    return np.clip(np.mean(np.atleast_1d(np.asarray(reflectance, dtype=np.float64)), axis=-1), 0.0, 1.0)
-
-
-def sun_share(glossiness, reflectance=1.0) -> np.ndarray:
-    """The part of the lobe the analytic sun stands for: the glossy maps' weights and the diffuse
-    map's as far as it is read sunless."""
+def sun_share(glossiness) -> np.ndarray:
+    """The part of the lobe the analytic sun stands for: the sunless maps' weights."""
     weights = tent_weights(glossiness)
-    return (weights[MAP_NAMES.index("glossy1")] + weights[MAP_NAMES.index("glossy2")]
-            + weights[MAP_NAMES.index("diffuse")] * sunless_diffuse_part(reflectance))
+    return sum(weights[MAP_NAMES.index(name)] for name in SUNLESS_MAPS)
 
 
 def widened_alpha(alpha, angle):
@@ -215,15 +207,11 @@ def widened_alpha(alpha, angle):
                    + SIZE_WIDENING * float(angle) ** 2)
 
 
-def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.DirectionalLight,
-              reflectance=1.0) -> np.ndarray:
-    """E D(h) G2 / (4 (N.V)) (1 + F (1 - A) / A) per point (arrays (..., 3); alphas per point or
-    scalars; F = ``reflectance``, the specular weight the term is multiplied by, rgb or a number):
-    the sun through the lobe, as the probe group computes it. The last factor is the energy the
-    single-scattering lobe loses, given back in proportion to Fresnel as Cycles' multiscatter GGX
-    does (Turquin 2019): 1 / A for a white metal (the unit lobe the maps hold), about 1 for a
-    dielectric, whose rough highlight really is dimmer. Zero where the sun or the view is below
-    the surface."""
+def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.DirectionalLight) -> np.ndarray:
+    """E D(h) G2 / (4 (N.V) A) per point (arrays (..., 3); alphas per point or scalars): the sun
+    through the lobe, as the probe group computes it, normalised like the maps' lobes (the
+    specular weight it is multiplied by holds the albedo). Zero where the sun or the view is
+    below the surface."""
     normal, tangent, view = (np.asarray(x, dtype=np.float64) for x in (normal, tangent, view))
     bitangent = np.cross(normal, tangent)
     a_t = widened_alpha(alpha_t, light.angle)
@@ -245,5 +233,4 @@ def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.Directional
     roughness = albedo_roughness(alpha_t, alpha_b)
     value = d / (1.0 + smith(view) + smith(sun)) / (4.0 * np.maximum(mu_v, 1e-4))
     value = np.where((mu_v > 0) & (mu_l > 0), value, 0.0)
-    lost = 1.0 / albedo(roughness, np.clip(mu_v, 0.0, 1.0)) - 1.0
-    return value[..., None] * light.rgb * (1.0 + np.asarray(reflectance) * lost[..., None])
+    return (value / albedo(roughness, np.clip(mu_v, 0.0, 1.0)))[..., None] * light.rgb

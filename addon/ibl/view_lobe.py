@@ -37,7 +37,6 @@ from . import sh
 from .anisotropy import TAP_SLOPES
 from .equirect import dir_to_uv, sample_bilinear
 from .maps import DEFAULT_HEIGHTS, GGX_LOBE_CUTOFF, MAP_ROUGHNESS, last_degree_above
-from .sun_lobe import sunless_diffuse_part
 
 VERSION = 1                  # in the probe's hash: a bake before the ladder is baked again
 # The scene's Glossy Lobes value that turns the ladder on (the others: maps.LOBES, the four maps).
@@ -169,11 +168,10 @@ def fold_share() -> float:
     return (g3 - mirror) / (g2 - mirror)
 
 
-def sun_share(weights, reflectance=1.0):
+def sun_share(weights):
     """The part of the lobe the analytic sun stands for (sun_lobe.sun_share on the ladder): the
-    rungs' weights and the diffuse map's as far as it is read sunless."""
-    return (sum(weights[LADDER.index(name)] for name in RUNGS)
-            + weights[0] * sunless_diffuse_part(reflectance))
+    rungs' and the diffuse map's weights (every map but the mirror's is read sunless)."""
+    return sum(weights[LADDER.index(name)] for name in RUNGS) + weights[0]
 
 
 def spread(normal, view, alpha, mu_floor=MU_FLOOR):

@@ -144,11 +144,8 @@ def peak_pull(roughness: float) -> float:
 
 def roughness_of(s: SBRDFParams) -> float:
     """The roughness principled_to_sbrdf() read ``s`` from: the glossiness's, and beyond the
-    diffuse map's the one whose peak_pull() made the (equal) Cx and Cy."""
-    roughness = glossiness_to_roughness(s.glossiness)
-    if s.glossiness <= 0.0 and s.cx == s.cy and -1.0 < s.cx <= 0.0:
-        roughness = _DIFFUSE_ROUGHNESS + (1.0 + s.cx) * (1.0 - _DIFFUSE_ROUGHNESS)
-    return float(roughness)
+    diffuse map's the one whose peak_pull() made Cx and Cy (the group's sun lobe reads it too)."""
+    return float(maps.pulled_roughness(s.glossiness, s.cx, s.cy))
 
 
 def nonfinite_fields(p: PrincipledValues) -> list[str]:

@@ -65,8 +65,8 @@ def test_apply_sbrdf_converts_principled_and_binds_probe(bpy_clean, tmp_path):
     envs = [n for n in probe.nodes if n.bl_idname == "ShaderNodeTexEnvironment"
             and n.get("platelight_map") not in LOOKUP_FILES]     # the parallax look-ups have their own
     # the diffuse lobe's map + each anisotropic tap's three glossy/mirror maps + the specular
-    # lobe's diffuse map with and without the sun + three refraction channels' four maps
-    expected = 1 + 3 * len(TAP_SLOPES) + 2 + 3 * 4
+    # lobe's (sunless) diffuse map + three refraction channels' four maps
+    expected = 1 + 3 * len(TAP_SLOPES) + 1 + 3 * 4
     assert len(envs) == expected and all(n.image is not None for n in envs)
     assert {n.image.name for n in envs} == {f"{m}.exr" for m in sc.MAP_HEIGHTS}
     assert all(n.interpolation == "Linear" for n in envs)

@@ -21,6 +21,9 @@ CASES = {
     "glossy": BASE,
     "rough": dict(BASE, glossiness=0.2, diffuse_albedo=(0.3, 0.4, 0.5), specular_albedo=(0.2, 0.2, 0.2)),
     "rough_metal": dict(BASE, glossiness=0.1),
+    # glossiness 0 with the peak pulled towards N: a converted roughness-0.85 lobe, its sun
+    # through GGX of that roughness
+    "pulled": dict(BASE, glossiness=0.0, cx=-0.4, cy=-0.4, fresnel_falloff=0.05),
     "near_mirror": dict(BASE, glossiness=0.85),
     "mirror": dict(BASE, glossiness=1.0),
     "brushed": dict(BASE, anisotropy=0.8, tangent_rotation=0.5, fresnel_falloff=0.1),
