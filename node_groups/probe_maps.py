@@ -37,7 +37,7 @@ VERSION = 10                         # 3: parallax-corrected specular look-ups (
                                      # 7: anisotropic look-ups along the Specular Spread
                                      # 8: the sun through the lobe, the other maps sunless
                                      # 9: the view-dependent ladder (glossy3, narrowed look-ups)
-                                     # 10: the sun's lobe normalised by A alone, every map but
+                                     # 10: a dielectric's sun lobe normalised by A, every map but
                                      #     the mirror's read sunless by the specular lobe
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
@@ -549,8 +549,9 @@ def _irradiance_grid(g, direction):
 
 
 def _sun_highlight(g, inp):
-    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V) A) of the group's sun (its irradiance 0
-    when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas."""
+    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V)) (1 + b (1 - A) / A) of the group's sun
+    (its irradiance 0 when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas,
+    b = sun_lobe.given_back(Specular Weight)."""
     direction = _named_vector(g, names.SUN_DIRECTION_NODE)
     color = _named_vector(g, names.SUN_COLOR_NODE)
     angle = _named_value(g, names.SUN_ANGLE_NODE, 0.0)
@@ -583,11 +584,18 @@ def _sun_highlight(g, inp):
     # sun_lobe.albedo_roughness: the RMS alpha's roughness
     roughness = g.math("POWER", g.math("MULTIPLY", g.math("ADD", squared(split.outputs[0]), squared(split.outputs[1])),
                                        0.5), 0.25)
-    # normalised by the lobe's albedo A, as the maps' lobes are
-    denominator = g.math("MULTIPLY", g.math("MULTIPLY", g.math("MULTIPLY", masking, g.math("MAXIMUM", mu_v, 1e-4)), 4.0),
-                         _lobe_albedo(g, roughness, mu_v))
+    denominator = g.math("MULTIPLY", g.math("MULTIPLY", masking, g.math("MAXIMUM", mu_v, 1e-4)), 4.0)
     above = g.math("MULTIPLY", g.math("GREATER_THAN", mu_v, 0.0), g.math("GREATER_THAN", mu_l, 0.0))
-    return g.vmath("SCALE", color, scale=g.math("MULTIPLY", above, g.math("DIVIDE", d, denominator)))
+    # what single scattering loses, given back in full for a dielectric, F of it for a metal
+    lost = g.math("SUBTRACT", g.math("DIVIDE", 1.0, _lobe_albedo(g, roughness, mu_v)), 1.0)
+    weight = inp["Specular Weight"]
+    low, high = sun_lobe.METAL_LIKE
+    metal = g.math("MULTIPLY_ADD", g.vmath("DOT_PRODUCT", weight, (1 / 3, 1 / 3, 1 / 3)), 1.0 / (high - low),
+                   -low / (high - low), clamp=True)
+    given_back = g.mix("VECTOR", metal, (1.0, 1.0, 1.0), weight)
+    regained = g.vmath("ADD", (1.0, 1.0, 1.0), g.vmath("SCALE", given_back, scale=lost))
+    return g.vmath("MULTIPLY", g.vmath("SCALE", color, scale=g.math("MULTIPLY", above, g.math("DIVIDE", d, denominator))),
+                   regained)
 
 
 def _lobe_albedo(g, roughness, mu):

@@ -144,7 +144,7 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None, rungs=None):
         aspect = anisotropy.aspect(amount)
         share = view_lobe.sun_share(weights)
         specular = specular + share[..., None] * sun_lobe.highlight(N, Tr, lobe_view, alpha / aspect,
-                                                                    alpha * aspect, sun)
+                                                                    alpha * aspect, sun, rho_s * g2)
     lr = lr + rho_s * g2 * specular
     refr = np.zeros_like(lr)
     dirs = [spec_dir, N, *taps]

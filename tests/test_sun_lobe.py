@@ -67,6 +67,22 @@ def test_sun_share_leaves_the_mirror_map_its_sun():
     assert np.isclose(sun_lobe.sun_share(5 / 6), 0.5) and sun_lobe.sun_share(0.0) == 1.0
 
 
+def test_a_dielectric_lobe_gives_back_all_single_scattering_loses_a_metal_f_of_it():
+    assert np.allclose(sun_lobe.given_back((0.04, 0.04, 0.04)), 1.0) and sun_lobe.given_back(0.1) == 1.0
+    assert np.allclose(sun_lobe.given_back((0.95, 0.64, 0.54)), (0.95, 0.64, 0.54))     # copper
+    assert np.isclose(sun_lobe.given_back(0.2), 0.5 * 1.0 + 0.5 * 0.2)                  # between
+    # per point: (points, rgb)
+    assert sun_lobe.given_back(np.array([[0.04] * 3, [0.9] * 3])).shape == (2, 3)
+    # so a roughness-1 dielectric's sun is 1 / A, a metal's 1 + F (1 - A) / A (A = 0.307 head-on)
+    light = lights.DirectionalLight(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 1.0]), 0.0, True)
+    n, t, v = np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]])
+    white = sun_lobe.highlight(n, t, v, 1.0, 1.0, light)
+    assert np.allclose(sun_lobe.highlight(n, t, v, 1.0, 1.0, light, 0.04), white)
+    metal = sun_lobe.highlight(n, t, v, 1.0, 1.0, light, 0.6)
+    a = sun_lobe.albedo(1.0, 1.0)
+    assert np.allclose(metal / white, (1 + 0.6 * (1 - a) / a) * a, rtol=1e-6)
+
+
 def test_split_keeps_the_energy_and_a_sky_without_sun_is_left_alone():
     env, light, sunless = _sky_with_small_sun(64)
     _, omega = reference.texel_grid(64)

@@ -10,19 +10,20 @@ diffuse, glossy1 and glossy2 maps of the probe *without* its sun (``<map>_sunles
 sun in the bake record. The shader's specular look-ups read the sunless diffuse and glossy maps
 and the mirror map (which keeps the sun), and add the sun through the lobe for their share:
 
-    S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2 + w_diffuse) E D(h) G2(V, L) / (4 (N.V) A)
+    S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2 + w_diffuse) E D(h) G2(V, L) / (4 (N.V)) (1 + b (1 - A) / A)
 
 h the half vector of the sun direction L and the lobe's view V, D and G2 Principled's anisotropic
 GGX with Smith's height-correlated masking (alphas r^2 / aspect along the rotated tangent,
 r^2 aspect across it; addon/ibl/anisotropy.py; r the roughness of the glossiness and, at
 glossiness 0, of the peak's pull, maps.pulled_roughness), E the sun's irradiance (rgb, lights.py's
-units) and A the lobe's directional albedo: the lobe integrates to 1 as a map's lobe does, because
-the specular albedo already holds what masking takes from a rough lobe (a converted Principled's
-rho_s is its E(1), addon/material/principled.py). The alphas are widened by the sun's own size, so
-a narrow lobe shows a disc, not a point. (Until session 23 the diffuse map kept the sun for
-1 - F of the lobe, F its reflectance, and the lobe gave back only F (1 - A) / A: both were fitted
-when rho_s was still F0 and counted masking's loss twice since; docs/decisions.md, "The sun
-through a rough lobe, normalised once".)
+units), A the lobe's directional albedo and b how much of what single scattering loses the lobe
+gives back (given_back): all of it for a dielectric, whose specular weight rho_s' already follows
+its directional albedo E(mu) (the conversion fits it so), so the lobe integrates to 1 like a map's;
+F (1 - A) / A for a metal, as Cycles' multiscatter GGX gives it, because a metal's rho_s' holds
+only the head-on loss. The alphas are widened by the sun's own size, so a narrow lobe shows a disc,
+not a point. (Until session 23 every lobe gave back F (1 - A) / A and the diffuse map kept the sun
+for 1 - F of the lobe, fitted when a dielectric's rho_s was still F0: since its rho_s' follows
+E(mu) that counted masking's loss twice; docs/decisions.md, "The sun through a rough lobe".)
 
 On a bare metal sphere under the bundled city HDRI (brute-force GGX of the whole HDRI as the
 truth; tests/bench/bench_sun_lobe.py, docs/bench/sun_lobe.md) this is the largest single gain of
@@ -67,6 +68,10 @@ ALBEDO = (
 # A larger probe (a world HDRI) is split at this height: the sunless maps are at most 64 rows, and
 # an 8k HDRI in float64 would take 800 MB.
 SPLIT_HEIGHT = 512
+# The mean specular weight below which a lobe gives back all single scattering loses (a
+# dielectric's, whose rho_s' follows its albedo) and above which F of it (a metal's); around the
+# conversion's own line between them (principled.METAL_THRESHOLD, 0.2).
+METAL_LIKE = (0.1, 0.3)
 # Smallest alpha the shader evaluates (D's peak 1 / (pi alpha^2) stays finite in float32).
 MIN_ALPHA = 1e-3
 # A disc of angular diameter theta moves the half vector over a disc of slope radius ~theta / 4,
@@ -207,11 +212,22 @@ def widened_alpha(alpha, angle):
                    + SIZE_WIDENING * float(angle) ** 2)
 
 
-def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.DirectionalLight) -> np.ndarray:
-    """E D(h) G2 / (4 (N.V) A) per point (arrays (..., 3); alphas per point or scalars): the sun
-    through the lobe, as the probe group computes it, normalised like the maps' lobes (the
-    specular weight it is multiplied by holds the albedo). Zero where the sun or the view is
-    below the surface."""
+def given_back(reflectance) -> np.ndarray:
+    """b in the highlight's 1 + b (1 - A) / A, per channel, for a lobe of specular weight F
+    (``reflectance``, rgb or a number): 1 where the mean F is a dielectric's (below
+    METAL_LIKE[0]), F where it is a metal's (above METAL_LIKE[1]), linear between."""
+    reflectance = np.asarray(reflectance, dtype=np.float64)
+    mean = np.mean(np.atleast_1d(reflectance), axis=-1, keepdims=reflectance.ndim > 0)
+    metal = np.clip((mean - METAL_LIKE[0]) / (METAL_LIKE[1] - METAL_LIKE[0]), 0.0, 1.0)
+    return 1.0 - metal * (1.0 - reflectance)
+
+
+def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.DirectionalLight,
+              reflectance=1.0) -> np.ndarray:
+    """E D(h) G2 / (4 (N.V)) (1 + b (1 - A) / A) per point (arrays (..., 3); alphas per point or
+    scalars; b = given_back(``reflectance``), the specular weight the term is multiplied by, rgb
+    or a number): the sun through the lobe, as the probe group computes it. Zero where the sun or
+    the view is below the surface."""
     normal, tangent, view = (np.asarray(x, dtype=np.float64) for x in (normal, tangent, view))
     bitangent = np.cross(normal, tangent)
     a_t = widened_alpha(alpha_t, light.angle)
@@ -233,4 +249,5 @@ def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.Directional
     roughness = albedo_roughness(alpha_t, alpha_b)
     value = d / (1.0 + smith(view) + smith(sun)) / (4.0 * np.maximum(mu_v, 1e-4))
     value = np.where((mu_v > 0) & (mu_l > 0), value, 0.0)
-    return (value / albedo(roughness, np.clip(mu_v, 0.0, 1.0)))[..., None] * light.rgb
+    lost = 1.0 / albedo(roughness, np.clip(mu_v, 0.0, 1.0)) - 1.0
+    return value[..., None] * light.rgb * (1.0 + given_back(reflectance) * lost[..., None])
