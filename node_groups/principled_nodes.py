@@ -41,6 +41,16 @@ def read_principled(material) -> PrincipledValues | None:
     return PrincipledValues(**values)
 
 
+def linked_inputs(material) -> list[str]:
+    """The inputs of the material's Principled BSDF that links drive (a texture, a normal map):
+    the conversion reads each socket's own value, so what the link shows is not carried over."""
+    node = principled_node(material)
+    if node is None:
+        return []
+    return [name for name in (*SOCKETS.values(), "Normal")
+            if name in node.inputs and node.inputs[name].is_linked]
+
+
 def checked_principled(material) -> PrincipledValues | None:
     """read_principled(), refused with one sentence where a value is NaN: converting it would put
     NaN into the SBRDF and every pixel it shades."""

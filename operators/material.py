@@ -14,6 +14,7 @@ from ..addon.errors import PlateLightError
 from ..addon.material.params import PARAMETERS
 from ..addon.material.presets import PRESET_SUBDIR, preset_label, preset_names, preset_params
 from ..node_groups import sbrdf_material as sm
+from ..node_groups.principled_nodes import linked_inputs
 from .common import report_error
 
 BUILTIN_PRESETS = os.path.join(os.path.dirname(os.path.dirname(__file__)), "presets", PRESET_SUBDIR)
@@ -70,6 +71,10 @@ class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
 
     def execute(self, context):
         obj = context.object
+        # read before the conversion: the slots then hold the new materials
+        driven = {} if self.preset != "NONE" else {
+            slot.material.name: linked_inputs(slot.material) for slot in obj.material_slots
+            if slot.material is not None and sm.sbrdf_node(slot.material) is None}
         try:
             material = sm.apply_sbrdf_material(
                 obj, None if self.preset == "NONE" else self.preset, scene=context.scene)
@@ -79,6 +84,11 @@ class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
         folder, status = sm.resolve_probe_dir(obj, context.scene)
         level = {"WARNING"} if "missing" in status else {"INFO"}
         self.report(level, f"{material.name}: {status}")
+        for name, inputs in driven.items():
+            if inputs:
+                self.report({"WARNING"}, f"{name}'s {', '.join(inputs)} came from links (textures, "
+                            "node chains), which the conversion does not carry over: the SBRDF "
+                            "took their own values; link its inputs to keep them")
         absent = _maps_not_baked(obj, folder)
         if absent:
             self.report({"WARNING"}, f"{material.name} reads the {', '.join(absent)} map(s), which "
