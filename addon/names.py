@@ -18,6 +18,7 @@ GRID_LO_NODE = "PlateLight Grid Low Corner"  # in a probe group: the irradiance 
 GRID_SCALE_NODE = "PlateLight Grid Scale"    # ... 1 / its size per axis (0 on a flat axis)
 GRID_POINTS_NODE = "PlateLight Grid Points"  # ... points per axis
 GRID_HEIGHT_NODE = "PlateLight Grid Height"  # ... height of each map in the atlas
+PRINCIPLED_CONVERSION = "PlateLight Principled Conversion"   # textured inputs -> SBRDF; also its node
 TWIN_NODE = "PlateLight Principled Twin"    # in an SBRDF material: what non-camera rays meet
 RAY_SPLIT_NODE = "PlateLight Ray Split"     # max(Is Camera Ray, Emission For All Rays)
 RAY_MIX_NODE = "PlateLight Ray Mix"

@@ -86,17 +86,21 @@ def tent_weights(g, glossiness):
 
 
 def float_curve(g, xs, ys, value):
-    """A Float Curve through (xs, ys), linear between the points and flat beyond them."""
+    """A Float Curve through (xs, ys), linear between the points and flat beyond them. Values
+    outside [0, 1] are held scaled into it (a curve's points are clipped to its box)."""
+    low, high = min(min(ys), 0.0), max(max(ys), 1.0)
     node = g.node("ShaderNodeFloatCurve")
     curve = node.mapping.curves[0]
     while len(curve.points) < len(xs):
         curve.points.new(0.0, 0.0)
     for point, x, y in zip(curve.points, xs, ys):
-        point.location = (x, y)
+        point.location = (x, (y - low) / (high - low))
         point.handle_type = "VECTOR"
     node.mapping.update()
     g.link(value, node.inputs["Value"])
-    return node.outputs["Value"]
+    if (low, high) == (0.0, 1.0):
+        return node.outputs["Value"]
+    return g.math("MULTIPLY_ADD", node.outputs["Value"], high - low, low)
 
 
 def sync_interface(tree, sockets):
@@ -131,6 +135,18 @@ def sync_interface(tree, sockets):
                              if i.item_type == "SOCKET" and i.in_out != io
                              and i.position < items[0].position)
                 tree.interface.move(item, offset + index)
+
+
+def shader_group(name: str):
+    """The shader node group ``name``, new and empty if there is none; a node group of another
+    kind holding the name is renamed aside (kept: it is the user's)."""
+    import bpy
+
+    tree = bpy.data.node_groups.get(name)
+    if tree is not None and tree.bl_idname != "ShaderNodeTree":
+        tree.name = name + " (not a shader group)"
+        tree = None
+    return tree or bpy.data.node_groups.new(name, "ShaderNodeTree")
 
 
 def io_nodes(graph):

@@ -41,10 +41,10 @@ def read_principled(material) -> PrincipledValues | None:
     return PrincipledValues(**values)
 
 
-def linked_inputs(material) -> list[str]:
-    """The inputs of the material's Principled BSDF that links drive (a texture, a normal map):
-    the conversion reads each socket's own value, so what the link shows is not carried over."""
-    node = principled_node(material)
+def linked_inputs(material, node=None) -> list[str]:
+    """The inputs of the material's Principled BSDF (or of ``node``) that links drive (a texture,
+    a normal map): the conversion carries them into the SBRDF (sbrdf_material.carry_links)."""
+    node = node or principled_node(material)
     if node is None:
         return []
     return [name for name in (*SOCKETS.values(), "Normal")

@@ -62,7 +62,7 @@ def wire_twin(material, emission_socket, params, emission_for_all_rays=None):
     """Route ``emission_socket`` (the probe group's Shader) to the camera and the Principled twin
     to all other rays; idempotent. ``emission_for_all_rays``: None keeps the material's choice."""
     tree = material.node_tree
-    out = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    out = material_output(tree)
     x, y = out.location
     twin = _node(tree, TWIN_NODE, "ShaderNodeBsdfPrincipled", (x - 300, y - 300))
     update_twin(material, params, twin)
@@ -82,6 +82,12 @@ def wire_twin(material, emission_socket, params, emission_for_all_rays=None):
     tree.links.new(emission_socket, mix.inputs[2])
     tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
     return mix
+
+
+def material_output(tree):
+    """The Material Output the renderers use (the active one where a tree holds several)."""
+    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    return next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
 
 
 def update_twin(material, params, twin=None):

@@ -32,7 +32,7 @@ from ..addon.ibl.anisotropy import ASPECT_SCALE
 from ..addon.ibl.lobe_tilt import MU, TILT
 from ..addon.ibl.maps import GLOSSINESS_KNOTS, MAP_NAMES, PULL_BELOW, ROUGHNESS_KNOTS
 from ..addon.material.params import PARAMETERS
-from ._build import VERSION_KEY, Graph, float_curve, io_nodes, sync_interface, tent_weights
+from ._build import VERSION_KEY, Graph, float_curve, io_nodes, shader_group, sync_interface, tent_weights
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place.
 # 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt;
@@ -87,13 +87,8 @@ def _interface():
 
 def ensure_sbrdf_group():
     """Return the "PlateLight SBRDF" group, building it or upgrading an older version in place."""
-    tree = bpy.data.node_groups.get(names.SBRDF_GROUP)
-    if tree is not None and tree.bl_idname != "ShaderNodeTree":
-        tree.name = names.SBRDF_GROUP + " (not a shader group)"
-        tree = None
-    if tree is None:
-        tree = bpy.data.node_groups.new(names.SBRDF_GROUP, "ShaderNodeTree")
-    elif tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2:
+    tree = shader_group(names.SBRDF_GROUP)
+    if tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2:
         return tree
     old_version = tree.get(VERSION_KEY) if len(tree.nodes) > 2 else None
     before = {item.name for item in tree.interface.items_tree if getattr(item, "in_out", None) == "INPUT"}

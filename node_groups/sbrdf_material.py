@@ -14,9 +14,12 @@ from .. import compat
 from ..addon import names
 from ..addon.bake.layout import DEFAULT_MAPS_DIR, WORLD_FOLDER, object_maps_dir
 from ..addon.errors import PlateLightError
-from ..addon.material.params import PARAMETERS, SBRDFParams
+from ..addon.material.params import PARAMETERS, SPEC, SBRDFParams
+from ..addon.material.principled import CHANGES, principled_to_sbrdf
 from ..addon.material.presets import preset_params
 from . import probe_maps, ray_twin
+from .principled_conversion import ensure_conversion_group
+from .principled_nodes import SOCKETS, checked_principled, linked_inputs, principled_node, read_principled
 from .sbrdf import LOOKUP_SOCKETS, ensure_sbrdf_group
 
 WORLD_SUBDIR = WORLD_FOLDER          # the bake writes the world's maps there
@@ -89,22 +92,68 @@ def resolve_probe_dir(obj, scene) -> tuple[str, str]:
     return world, f"Maps missing in '{own or '(no folder)'}' and no world maps: renders black"
 
 
-def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | None = None):
-    """A new material shading with the SBRDF bound to the maps in ``probe_dir``."""
-    material = compat.new_material(name)
+def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | None = None,
+                   source=None):
+    """A new material shading with the SBRDF bound to the maps in ``probe_dir``.
+
+    ``source``: the Principled material it converts. Where links (textures, node chains) drive
+    its Principled inputs, the new material is a copy of it, so those chains come along: they
+    feed the SBRDF through the conversion group, and the Principled BSDF itself, textures and
+    all, becomes the twin the other rays meet (ray_twin.py)."""
+    carried = source is not None and bool(linked_inputs(source))
+    material = source.copy() if carried else compat.new_material(name)
+    material.name = name
+    material.use_fake_user = False
     tree = material.node_tree
-    tree.nodes.clear()
+    if carried:
+        twin = principled_node(material)
+        twin.name = twin.label = names.TWIN_NODE
+        out = ray_twin.material_output(tree) or tree.nodes.new("ShaderNodeOutputMaterial")
+        x, y = out.location
+    else:
+        tree.nodes.clear()
+        out = tree.nodes.new("ShaderNodeOutputMaterial")
+        x, y = out.location = (300, 0)
     group = tree.nodes.new("ShaderNodeGroup")
     group.node_tree = ensure_sbrdf_group()
     group.name = group.label = names.SBRDF_GROUP
-    group.location = (-400, 0)
+    group.location = (x - 700, y + 400 if carried else y)
     group.width = 240
-    out = tree.nodes.new("ShaderNodeOutputMaterial")
-    out.location = (300, 0)
     material["platelight_sbrdf"] = 1
     bind_probe(material, probe_dir, label)
     write_params(material, params)
+    if carried:
+        carry_links(material, twin, read_principled(source))
     return material
+
+
+def carry_links(material, twin, values) -> list[str]:
+    """Feed the SBRDF from the links that drive the twin's inputs: each through the conversion
+    group (``values``, the Principled values, for its other inputs) into exactly the parameters
+    that input changes (principled.CHANGES), the Normal straight in. Returns the inputs carried."""
+    tree = material.node_tree
+    sbrdf = sbrdf_node(material)
+    carried = linked_inputs(material, twin)
+    if "Normal" in carried:
+        tree.links.new(twin.inputs["Normal"].links[0].from_socket, sbrdf.inputs["Normal"])
+    driven = [field for field, socket in SOCKETS.items() if socket in carried]
+    if not driven:
+        return carried
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = ensure_conversion_group()
+    node.name = node.label = names.PRINCIPLED_CONVERSION
+    node.location = (sbrdf.location[0] - 300, sbrdf.location[1])
+    for field, socket in SOCKETS.items():
+        value = getattr(values, field)
+        node.inputs[socket].default_value = (*value, 1.0) if field.endswith("color") else value
+        if field in driven:
+            tree.links.new(twin.inputs[socket].links[0].from_socket, node.inputs[socket])
+    for name in {name for field in driven for name in CHANGES[field]}:
+        tree.links.new(node.outputs[SPEC[name].label], sbrdf.inputs[SPEC[name].label])
+    # the camera sees the emission through the SBRDF; the twin must not light the scene again
+    for link in list(twin.inputs[SOCKETS["emission_strength"]].links):
+        tree.links.remove(link)
+    return carried
 
 
 def bind_probe(material, probe_dir: str, label: str | None = None):
@@ -147,10 +196,8 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
 
     Existing SBRDF materials are rebound (and get the preset if given); other materials are
     converted (Principled settings mapped where they can be) into new materials, the originals
-    kept with a fake user so nothing is lost."""
-    from ..addon.material.principled import principled_to_sbrdf
-    from .principled_nodes import checked_principled
-
+    kept with a fake user so nothing is lost; links driving their Principled inputs (textures)
+    are carried into the SBRDF (build_material)."""
     scene = scene or bpy.context.scene
     check_editable(obj)                     # before anything is created
     folder, _status = resolve_probe_dir(obj, scene)
@@ -171,7 +218,8 @@ def apply_sbrdf_material(obj, preset_name: str | None = None, params: SBRDFParam
                 principled = sources.get(index)
                 base = principled_to_sbrdf(principled) if principled else SBRDFParams()
             name = f"{material.name} SBRDF" if material else f"{obj.name} SBRDF"
-            new = build_material(name, folder, base, label=obj.name)
+            new = build_material(name, folder, base, label=obj.name,
+                                 source=material if params is None else None)
             if material is not None:
                 material.use_fake_user = True
                 new["platelight_source_material"] = material.name

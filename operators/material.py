@@ -86,9 +86,9 @@ class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
         self.report(level, f"{material.name}: {status}")
         for name, inputs in driven.items():
             if inputs:
-                self.report({"WARNING"}, f"{name}'s {', '.join(inputs)} came from links (textures, "
-                            "node chains), which the conversion does not carry over: the SBRDF "
-                            "took their own values; link its inputs to keep them")
+                self.report({"INFO"}, f"{name}'s {', '.join(inputs)} came from links (textures, "
+                            "node chains): carried into the SBRDF through the Principled "
+                            "conversion; the material editor shows them as from a texture")
         absent = _maps_not_baked(obj, folder)
         if absent:
             self.report({"WARNING"}, f"{material.name} reads the {', '.join(absent)} map(s), which "

@@ -163,8 +163,8 @@ def test_dielectric_fresnel_knots_follow_the_ggx_albedo():
     0.17, at roughness 0.3)."""
     mus = np.linspace(0.02, 1.0, 50)
     exponents = np.linspace(0.5, 40.0, 396)
-    for roughness, peak, exponent, head_on in zip(principled._DIELECTRIC_ROUGHNESS, principled._DIELECTRIC_PEAK,
-                                                  principled._DIELECTRIC_EXPONENT, principled._DIELECTRIC_HEAD_ON):
+    for roughness, peak, exponent, head_on in zip(principled.DIELECTRIC_ROUGHNESS, principled.DIELECTRIC_PEAK,
+                                                  principled.DIELECTRIC_EXPONENT, principled.DIELECTRIC_HEAD_ON):
         albedo = np.array([_multiscatter_albedo(mu, max(roughness ** 2, 1e-4)) for mu in mus])
         rise = (albedo - albedo[-1]) / (1 - albedo[-1])
         curves = (1 - mus)[None, :] ** exponents[:, None]
@@ -183,7 +183,7 @@ def test_metal_fresnel_knots_follow_the_ggx_albedo():
     area weighted) of (1 - mu)^k to the rise of GGX's directional albedo, (E(mu) - E(1)) / (1 - E(1))."""
     mus = np.linspace(0.02, 1.0, 50)
     exponents = np.linspace(1.0, 200.0, 3981)
-    for roughness in principled._FALLOFF_ROUGHNESS:
+    for roughness in principled.FALLOFF_ROUGHNESS:
         albedo = np.array([_ggx_albedo(mu, max(roughness ** 2, 1e-4)) for mu in mus])
         rise = (albedo - albedo[-1]) / (1 - albedo[-1])
         cost = (((1 - mus)[None, :] ** exponents[:, None] - rise) ** 2 * mus).sum(axis=1)
@@ -201,7 +201,7 @@ def test_metal_head_on_follows_the_multiscatter_albedo():
     albedo (brute force over visible normals). The table holds W head-on at each knot; the
     converted metal follows E(1) within 1.5 % for F0 0.3-0.95 (it took F0 itself: 25 % too much
     for F0 0.7 at roughness 1)."""
-    for roughness, white in zip(principled._FALLOFF_ROUGHNESS, principled._WHITE_HEAD_ON):
+    for roughness, white in zip(principled.FALLOFF_ROUGHNESS, principled.WHITE_HEAD_ON):
         alpha = max(roughness ** 2, 1e-4)
         w = _ggx_albedo(1.0, alpha, 256, fresnel=np.ones_like)
         assert white == pytest.approx(w, abs=0.002), roughness
@@ -295,3 +295,32 @@ def test_presets_cover_the_paper_and_files_are_current(tmp_path):
     for path in map(pathlib.Path, written):
         shipped = REPO / "presets" / presets.PRESET_SUBDIR / path.name
         assert shipped.read_text() == path.read_text(), f"regenerate {shipped.name}"
+
+
+def test_changes_names_every_parameter_each_principled_input_moves():
+    """principled.CHANGES decides which SBRDF sockets a texture-driven Principled input drives:
+    one it misses would keep a constant where the texture varies, one too many would take a
+    slider from the material editor. Each input is nudged at random points of the others."""
+    rng = np.random.default_rng(7)
+    moved = {field: set() for field in principled.CHANGES}
+    for _ in range(40):
+        values = principled.PrincipledValues(
+            base_color=tuple(rng.uniform(0.05, 0.95, 3)), metallic=float(rng.uniform(0.05, 0.95)),
+            roughness=float(rng.uniform(0.05, 0.95)), ior=float(rng.uniform(1.1, 2.5)),
+            specular_ior_level=float(rng.uniform(0.1, 0.9)),
+            transmission=float(rng.uniform(0.05, 0.95)), alpha=float(rng.uniform(0.1, 0.9)),
+            anisotropic=float(rng.uniform(0.05, 0.95)),
+            anisotropic_rotation=float(rng.uniform(0.05, 0.95)),
+            emission_color=tuple(rng.uniform(0.05, 0.95, 3)),
+            emission_strength=float(rng.uniform(0.5, 5.0)))
+        before = dataclasses.asdict(principled.principled_to_sbrdf(values))
+        for field in principled.CHANGES:
+            value = getattr(values, field)
+            nudged = tuple(c * 0.93 for c in value) if isinstance(value, tuple) else value * 0.93
+            after = dataclasses.asdict(principled.principled_to_sbrdf(
+                dataclasses.replace(values, **{field: nudged})))
+            moved[field] |= {name for name in before
+                             if not np.allclose(before[name], after[name], atol=1e-9)}
+    assert set(principled.CHANGES) == {f.name for f in dataclasses.fields(principled.PrincipledValues)}
+    for field, changed in principled.CHANGES.items():
+        assert moved[field] == set(changed), field

@@ -53,19 +53,19 @@ from .params import SBRDFParams
 METAL_THRESHOLD = 0.2
 # A metal's Fresnel exponent, fitted by tests/test_material.py::
 # test_metal_fresnel_knots_follow_the_ggx_albedo (brute force); its Fresnel Peak is 1.
-_FALLOFF_ROUGHNESS = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0])
-_FALLOFF_EXPONENT = np.array([5.0, 5.4, 6.9, 10.9, 23.2, 58.6, 86.9, 102.4, 118.1])
-# White GGX's single-scattering albedo head-on (Fresnel 1) at _FALLOFF_ROUGHNESS, by
+FALLOFF_ROUGHNESS = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0])
+FALLOFF_EXPONENT = np.array([5.0, 5.4, 6.9, 10.9, 23.2, 58.6, 86.9, 102.4, 118.1])
+# White GGX's single-scattering albedo head-on (Fresnel 1) at FALLOFF_ROUGHNESS, by
 # tests/test_material.py::test_metal_head_on_follows_the_multiscatter_albedo (brute force).
-_WHITE_HEAD_ON = np.array([1.0, 1.0, 0.991, 0.968, 0.916, 0.825, 0.698, 0.555, 0.307])
+WHITE_HEAD_ON = np.array([1.0, 1.0, 0.991, 0.968, 0.916, 0.825, 0.698, 0.555, 0.307])
 # The diffuse map's roughness: every rougher lobe has glossiness 0 and its peak pulled to N.
 _DIFFUSE_ROUGHNESS = float(maps.ROUGHNESS_KNOTS[0])
 # A dielectric's (IOR 1.5, multiscatter GGX): Fresnel Peak c, exponent k and E(1) / F0, fitted by
 # tests/test_material.py::test_dielectric_fresnel_knots_follow_the_ggx_albedo (brute force).
-_DIELECTRIC_ROUGHNESS = np.linspace(0.0, 1.0, 11)
-_DIELECTRIC_PEAK = np.array([0.874, 0.830, 0.635, 0.423, 0.276, 0.181, 0.125, 0.093, 0.073, 0.061, 0.053])
-_DIELECTRIC_EXPONENT = np.array([4.40, 4.25, 3.65, 3.05, 2.70, 2.50, 2.45, 2.45, 2.35, 2.30, 2.25])
-_DIELECTRIC_HEAD_ON = np.array([1.0, 1.0, 1.001, 0.995, 0.977, 0.934, 0.855, 0.742, 0.612, 0.487, 0.382])
+DIELECTRIC_ROUGHNESS = np.linspace(0.0, 1.0, 11)
+DIELECTRIC_PEAK = np.array([0.874, 0.830, 0.635, 0.423, 0.276, 0.181, 0.125, 0.093, 0.073, 0.061, 0.053])
+DIELECTRIC_EXPONENT = np.array([4.40, 4.25, 3.65, 3.05, 2.70, 2.50, 2.45, 2.45, 2.35, 2.30, 2.25])
+DIELECTRIC_HEAD_ON = np.array([1.0, 1.0, 1.001, 0.995, 0.977, 0.934, 0.855, 0.742, 0.612, 0.487, 0.382])
 
 
 @dataclasses.dataclass
@@ -83,6 +83,25 @@ class PrincipledValues:
     emission_strength: float = 0.0
 
 
+# Which SBRDF parameters each Principled input changes through principled_to_sbrdf(): where a
+# texture drives an input, the conversion's node group (node_groups/principled_conversion.py)
+# drives exactly these, and the material editor keeps the rest (tests/test_material.py checks
+# the map against principled_to_sbrdf itself).
+CHANGES = {
+    "base_color": ("diffuse_albedo", "specular_albedo"),
+    "metallic": ("diffuse_albedo", "specular_albedo", "fresnel_falloff", "fresnel_peak", "alpha"),
+    "roughness": ("specular_albedo", "glossiness", "cx", "cy", "fresnel_falloff", "fresnel_peak"),
+    "ior": ("specular_albedo", "ior"),
+    "specular_ior_level": ("specular_albedo",),
+    "transmission": ("alpha",),
+    "alpha": ("alpha",),
+    "anisotropic": ("anisotropy",),
+    "anisotropic_rotation": ("tangent_rotation",),
+    "emission_color": ("emission_color",),
+    "emission_strength": ("emission_strength",),
+}
+
+
 # Each map's roughness (maps.MAP_ROUGHNESS) is fitted by tests/test_material.py::
 # test_roughness_knots_match_the_ggx_lobes, brute force.
 def roughness_to_glossiness(roughness: float) -> float:
@@ -94,7 +113,7 @@ def glossiness_to_roughness(glossiness: float) -> float:
 
 
 def _metal_exponent(roughness: float) -> float:
-    return float(np.interp(roughness, _FALLOFF_ROUGHNESS, _FALLOFF_EXPONENT))
+    return float(np.interp(roughness, FALLOFF_ROUGHNESS, FALLOFF_EXPONENT))
 
 
 def roughness_to_fresnel_falloff(roughness: float) -> float:
@@ -104,9 +123,9 @@ def roughness_to_fresnel_falloff(roughness: float) -> float:
 
 def dielectric_fresnel(roughness: float) -> tuple[float, float, float]:
     """A dielectric's (exponent k = 1/phi - 1, Fresnel Peak c, E(1) / F0) at this roughness."""
-    knots = _DIELECTRIC_ROUGHNESS
+    knots = DIELECTRIC_ROUGHNESS
     return tuple(float(np.interp(roughness, knots, table))
-                 for table in (_DIELECTRIC_EXPONENT, _DIELECTRIC_PEAK, _DIELECTRIC_HEAD_ON))
+                 for table in (DIELECTRIC_EXPONENT, DIELECTRIC_PEAK, DIELECTRIC_HEAD_ON))
 
 
 def fresnel_terms(roughness: float, metallic: float) -> tuple[float, float, float]:
@@ -122,14 +141,14 @@ def metal_head_on(base, roughness: float):
     back what single scattering loses (1 - W, W its white albedo) times the average Fresnel, so a
     rough metal reflects W + F_avg (1 - W) of F0 head-on (0.80 for F0 0.7 at roughness 1)."""
     base = np.asarray(base, dtype=float)
-    white = float(np.interp(roughness, _FALLOFF_ROUGHNESS, _WHITE_HEAD_ON))
+    white = float(np.interp(roughness, FALLOFF_ROUGHNESS, WHITE_HEAD_ON))
     return white + (base + (1.0 - base) / 21.0) * (1.0 - white)
 
 
 def _metal_base(specular, roughness: float) -> np.ndarray:
     """The base whose base * metal_head_on(base, roughness) is ``specular`` (its quadratic's root)."""
     specular = np.asarray(specular, dtype=float)
-    lost = 1.0 - float(np.interp(roughness, _FALLOFF_ROUGHNESS, _WHITE_HEAD_ON))
+    lost = 1.0 - float(np.interp(roughness, FALLOFF_ROUGHNESS, WHITE_HEAD_ON))
     a, b = lost * 20.0 / 21.0, 1.0 - lost + lost / 21.0
     if a < 1e-12:
         return specular / b

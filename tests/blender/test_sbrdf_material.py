@@ -111,27 +111,6 @@ def test_a_nan_principled_value_is_refused_and_the_object_kept(bpy_clean, tmp_pa
     assert all(_sm().sbrdf_node(slot.material) is not None for slot in ob.material_slots)
 
 
-def test_textured_principled_inputs_are_named_not_lost_silently(bpy_clean, capfd):
-    bpy = bpy_clean
-    ob = _sphere(bpy)
-    mat = _principled(bpy, "Painted")
-    tree = mat.node_tree
-    node = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-    texture = tree.nodes.new("ShaderNodeTexChecker")
-    tree.links.new(texture.outputs["Color"], node.inputs["Base Color"])
-    bump = tree.nodes.new("ShaderNodeBump")
-    tree.links.new(bump.outputs["Normal"], node.inputs["Normal"])
-    from bl_ext.dev.platelight.node_groups.principled_nodes import linked_inputs
-    assert linked_inputs(mat) == ["Base Color", "Normal"]
-    assert linked_inputs(_principled(bpy, "Plain")) == [] and linked_inputs(None) == []
-    ob.data.materials.append(mat)
-    assert bpy.ops.platelight.apply_sbrdf() == {"FINISHED"}
-    # the report names the driven inputs (Blender prints a background operator's reports)
-    printed = capfd.readouterr()
-    assert "Painted's Base Color, Normal came from links" in printed.out + printed.err
-    assert mat.use_fake_user and mat.name in bpy.data.materials          # the textured original kept
-
-
 def test_missing_maps_fall_back_to_world_maps(bpy_clean, tmp_path):
     bpy = bpy_clean
     bpy.context.scene.platelight.maps_dir = str(tmp_path)
