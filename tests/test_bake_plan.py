@@ -103,8 +103,8 @@ def test_maps_needed_unions_materials_and_defaults_to_all():
 
 
 def test_owner_visibility_follows_how_sharply_the_owner_reflects():
-    """A sharp reflector's or a metal's probe shows the floor under it as it is (the owner blocks
-    and bounces its indirect light); an object with a diffuse term, or a rough black one, keeps
+    """A sharp reflector's or a glossy metal's probe shows the floor under it as it is (the owner
+    blocks and bounces its indirect light); an object with a diffuse term, or a rough metal, keeps
     the shadow-only owner; the paper's setting hides it whatever it is."""
     mirror = needs.Lobes(diffuse=False, specular=True, glossiness=0.9, fresnel=True)
     copper = needs.Lobes(diffuse=False, specular=True, glossiness=0.6, fresnel=True)
@@ -118,6 +118,12 @@ def test_owner_visibility_follows_how_sharply_the_owner_reflects():
     assert needs.owner_visibility([copper], True) == needs.OWNER_INDIRECT
     assert needs.owner_visibility([copper, glossy_plastic], True) == needs.OWNER_SHADOWS
     assert needs.owner_visibility([rough_black], True) == needs.OWNER_SHADOWS
+    # a metal whose lobe reads the diffuse map (rougher than glossy1's 0.443) keeps the shadow-only
+    # owner: its wide lobe would blur the darkened floor under it over its lower half
+    at_glossy1 = needs.Lobes(diffuse=False, specular=True, glossiness=1 / 3, fresnel=True)
+    satin = needs.Lobes(diffuse=False, specular=True, glossiness=0.3, fresnel=True)
+    assert needs.owner_visibility([at_glossy1], True) == needs.OWNER_INDIRECT
+    assert needs.owner_visibility([satin], True) == needs.OWNER_SHADOWS
     assert needs.owner_visibility([matte], True) == needs.OWNER_SHADOWS
     assert needs.owner_visibility([], True) == needs.OWNER_SHADOWS
     for lobes in ([mirror], [matte], []):

@@ -88,21 +88,25 @@ OWNER_INDIRECT = "indirect"    # hidden from the probe's camera only: it also bl
 
 
 def owner_visibility(materials: list[Lobes], owner_shadows: bool) -> str:
-    """What the owner is to its own probe's rays. A sharp reflector or a metal reads the floor
-    under itself through parallax-corrected specular look-ups, so its probe shows that floor as
-    it is (OWNER_INDIRECT: a mirror sphere gained 2.1 dB at 480x270; a roughness-0.3 copper one
-    0.3 dB, with the glossy footprint 0.8 dB in all; docs/decisions.md). An object with a diffuse
+    """What the owner is to its own probe's rays. A sharp reflector or a glossy metal reads the
+    floor under itself through parallax-corrected specular look-ups, so its probe shows that
+    floor as it is (OWNER_INDIRECT: a mirror sphere gained 2.1 dB at 480x270; metal spheres of
+    roughness 0.3 / 0.4 1.6 / 0.3 dB, session 24; docs/decisions.md). An object with a diffuse
     term keeps OWNER_SHADOWS: the full occlusion darkened a matte ball's lower half (34.65 ->
-    31.79 dB from the centre's irradiance map; 38.0 -> 37.2 dB with the irradiance grid)."""
+    31.79 dB from the centre's irradiance map; 38.0 -> 37.2 dB with the irradiance grid); so
+    does a metal whose lobe reads the diffuse map: seen from the centre, the floor the owner
+    darkens fills the directions straight down, and a lobe that wide blurs it over the lower
+    half (roughness 0.5 / 0.6: +0.9 / +1.4 dB with the shadow-only owner)."""
     if not owner_shadows:
         return OWNER_HIDDEN
-    return OWNER_INDIRECT if needs_sharp_specular(materials) or is_metal(materials) else OWNER_SHADOWS
+    sharp = needs_sharp_specular(materials) or is_glossy_metal(materials)
+    return OWNER_INDIRECT if sharp else OWNER_SHADOWS
 
 
-def is_metal(materials: list[Lobes]) -> bool:
-    """Do all the object's materials reflect without a diffuse term and with a lobe narrower
-    than the diffuse map's (a metal, polished or brushed)?"""
+def is_glossy_metal(materials: list[Lobes]) -> bool:
+    """Do all the object's materials reflect without a diffuse term and with a lobe that reads no
+    part of the diffuse map (a metal, polished or brushed, up to glossy1's roughness 0.443)?"""
     return bool(materials) and all(
         lobes.specular and not lobes.diffuse
-        and (lobes.glossiness is None or map_weights(lobes.glossiness)["diffuse"] < 1.0)
+        and (lobes.glossiness is None or map_weights(lobes.glossiness)["diffuse"] == 0.0)
         for lobes in materials)

@@ -34,7 +34,7 @@ render_count = 0
 # An owner baked with its shadows (scene.platelight.probe_owner_shadows) is invisible to these
 # rays only: the probe looks through it, but the floor under it lies in its shadow, as seen from
 # its surface (the paper hides the owner, so a probe shows a sunlit floor under a ball on it).
-# A sharp reflector or a metal is hidden from camera rays only (addon/bake/needs.owner_visibility).
+# A sharp reflector or a glossy metal is hidden from camera rays only (addon/bake/needs.owner_visibility).
 SHADOW_ONLY_HIDDEN_RAYS = ("visible_camera", "visible_diffuse", "visible_glossy",
                            "visible_transmission", "visible_volume_scatter")
 
