@@ -223,3 +223,10 @@ def test_apply_sbrdf_carries_textures_normal_maps_and_says_so(bpy_clean, capfd):
     assert twin.inputs["Normal"].is_linked and twin.inputs["Base Color"].is_linked
     # the user's material is kept as it was, its emission texture included
     assert mat.use_fake_user and bsdf.inputs["Emission Strength"].is_linked
+    # a second run rebinds the probe and keeps the carried chains as they are
+    assert bpy.ops.platelight.apply_sbrdf() == {"FINISHED"}
+    assert ob.active_material == converted
+    nodes = converted.node_tree.nodes
+    assert [n.name for n in nodes if n.name.startswith(names.PRINCIPLED_CONVERSION)] == [conversion.name]
+    assert sbrdf.inputs["Diffuse Albedo"].links[0].from_node == conversion
+    assert sum(n.bl_idname == "ShaderNodeBsdfPrincipled" for n in nodes) == 1
