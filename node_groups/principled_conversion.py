@@ -50,13 +50,17 @@ def _clamp(g, value, low=0.0, high=1.0):
     return g.math("MINIMUM", g.math("MAXIMUM", value, low), high)
 
 
+def _clamp_colour(g, value):
+    return g.vmath("MINIMUM", g.vmath("MAXIMUM", value, (0.0, 0.0, 0.0)), (1.0, 1.0, 1.0))
+
+
 def _build(tree):
     g = Graph(tree)
     gin, gout = io_nodes(g)
     inp = {field: gin.outputs[socket] for field, socket in SOCKETS.items()}
     out = {name: gout.inputs[SPEC[name].label] for name in OUTPUTS}
 
-    base = g.vmath("MINIMUM", g.vmath("MAXIMUM", inp["base_color"], (0.0, 0.0, 0.0)), (1.0, 1.0, 1.0))
+    base = _clamp_colour(g, inp["base_color"])
     metal = _clamp(g, inp["metallic"])
     dielectric = g.math("SUBTRACT", 1.0, metal)
     rough = _clamp(g, inp["roughness"])
@@ -78,14 +82,13 @@ def _build(tree):
     # specular = (1 - m) F0 E(1)/F0 + m base metal_head_on(base), metal_head_on linear in base:
     # white + (1 - white) / 21 + base (1 - white) 20 / 21
     lost = g.math("SUBTRACT", 1.0, table(pr.FALLOFF_ROUGHNESS, pr.WHITE_HEAD_ON))
-    head_on = g.vmath("ADD", g.vmath("SCALE", base, scale=g.math("MULTIPLY", lost, 20.0 / 21.0)),
-                      g.math("SUBTRACT", 1.0, g.math("MULTIPLY", lost, 20.0 / 21.0)))
+    given_back = g.math("MULTIPLY", lost, 20.0 / 21.0)
+    head_on = g.vmath("ADD", g.vmath("SCALE", base, scale=given_back), g.math("SUBTRACT", 1.0, given_back))
     metal_specular = g.vmath("SCALE", g.vmath("MULTIPLY", base, head_on), scale=metal)
     dielectric_specular = g.math("MULTIPLY", g.math("MULTIPLY", dielectric, f0),
                                  table(pr.DIELECTRIC_ROUGHNESS, pr.DIELECTRIC_HEAD_ON))
     specular = g.vmath("ADD", metal_specular, dielectric_specular)
-    g.link(g.vmath("MINIMUM", g.vmath("MAXIMUM", specular, (0.0, 0.0, 0.0)), (1.0, 1.0, 1.0)),
-           out["specular_albedo"])
+    g.link(_clamp_colour(g, specular), out["specular_albedo"])
     g.link(g.vmath("SCALE", base, scale=dielectric), out["diffuse_albedo"])
 
     g.link(_clamp(g, float_curve(g, ROUGHNESS_KNOTS[::-1], GLOSSINESS_KNOTS[::-1], rough)),
@@ -101,8 +104,7 @@ def _build(tree):
     fraction = g.math("SUBTRACT", turns, g.math("FLOOR", turns))     # Python's % 1.0
     g.link(g.math("MULTIPLY", fraction, 2.0 * math.pi), out["tangent_rotation"])
     g.link(_clamp(g, inp["anisotropic"]), out["anisotropy"])
-    g.link(g.vmath("MINIMUM", g.vmath("MAXIMUM", inp["emission_color"], (0.0, 0.0, 0.0)),
-                   (1.0, 1.0, 1.0)), out["emission_color"])
+    g.link(_clamp_colour(g, inp["emission_color"]), out["emission_color"])
     g.link(_clamp(g, inp["emission_strength"], 0.0, SPEC["emission_strength"].maximum),
            out["emission_strength"])
     opaque = g.math("SUBTRACT", 1.0, g.math("MULTIPLY", inp["transmission"], dielectric))

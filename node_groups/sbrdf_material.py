@@ -127,10 +127,10 @@ def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | 
     return material
 
 
-def carry_links(material, twin, values) -> list[str]:
+def carry_links(material, twin, values) -> None:
     """Feed the SBRDF from the links that drive the twin's inputs: each through the conversion
     group (``values``, the Principled values, for its other inputs) into exactly the parameters
-    that input changes (principled.CHANGES), the Normal straight in. Returns the inputs carried."""
+    that input changes (principled.CHANGES), the Normal straight in."""
     tree = material.node_tree
     sbrdf = sbrdf_node(material)
     carried = linked_inputs(material, twin)
@@ -138,7 +138,7 @@ def carry_links(material, twin, values) -> list[str]:
         tree.links.new(twin.inputs["Normal"].links[0].from_socket, sbrdf.inputs["Normal"])
     driven = [field for field, socket in SOCKETS.items() if socket in carried]
     if not driven:
-        return carried
+        return
     node = tree.nodes.new("ShaderNodeGroup")
     node.node_tree = ensure_conversion_group()
     node.name = node.label = names.PRINCIPLED_CONVERSION
@@ -153,7 +153,6 @@ def carry_links(material, twin, values) -> list[str]:
     # the camera sees the emission through the SBRDF; the twin must not light the scene again
     for link in list(twin.inputs[SOCKETS["emission_strength"]].links):
         tree.links.remove(link)
-    return carried
 
 
 def bind_probe(material, probe_dir: str, label: str | None = None):
