@@ -17,7 +17,7 @@ from ..addon.material.params import SPEC
 from ._build import VERSION_KEY, Graph, float_curve, io_nodes, shader_group, sync_interface
 from .principled_nodes import SOCKETS
 
-VERSION = 1
+VERSION = 2
 OUTPUTS = tuple(name for name in SPEC if any(name in changed for changed in pr.CHANGES.values()))
 
 
@@ -76,7 +76,8 @@ def _build(tree):
     exponent = g.mix("FLOAT", metal, table(pr.DIELECTRIC_ROUGHNESS, pr.DIELECTRIC_EXPONENT),
                      table(pr.FALLOFF_ROUGHNESS, pr.FALLOFF_EXPONENT))
     g.link(_clamp(g, g.math("DIVIDE", 1.0, g.math("ADD", exponent, 1.0))), out["fresnel_falloff"])
-    peak = g.mix("FLOAT", metal, table(pr.DIELECTRIC_ROUGHNESS, pr.DIELECTRIC_PEAK), 1.0)
+    peak = g.mix("FLOAT", metal, table(pr.DIELECTRIC_ROUGHNESS, pr.DIELECTRIC_PEAK),
+                 table(pr.FALLOFF_ROUGHNESS, pr.FALLOFF_PEAK))
     g.link(_clamp(g, peak), out["fresnel_peak"])
 
     # specular = (1 - m) F0 E(1)/F0 + m base metal_head_on(base), metal_head_on linear in base:
