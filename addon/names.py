@@ -24,6 +24,7 @@ RAY_SPLIT_NODE = "PlateLight Ray Split"     # max(Is Camera Ray, Emission For Al
 RAY_MIX_NODE = "PlateLight Ray Mix"
 LIGHT_PATH_NODE = "PlateLight Light Path"
 PROBE_DISTANCE = "PlateLight Probe Distance"    # the bake's temporary distance material
+PROBE_DISTANCE_BEHIND = "PlateLight Probe Distance Behind"   # ... its peeled copy (behind_render.py)
 UNBAKED_MAP = "PlateLight Unbaked Map"   # 1x1 black stand-in for a map not baked yet
 
 # --- compositing (node_groups/composite.py, node_groups/compositor_tree.py)

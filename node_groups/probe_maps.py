@@ -23,14 +23,16 @@ from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
 from ..addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ..addon.ibl.anisotropy import TAP_SLOPES
-from ..addon.ibl.distance import DISTANCE_NAME, SECANT_STEPS, STEP_START, STEPS, distance_filename
+from ..addon.ibl.distance import (BEHIND_BISECT, BEHIND_GROWTH, BEHIND_JUMP, BEHIND_MAPS, BEHIND_NEAR, BEHIND_STEPS, DISTANCE_NAME, FAR,
+                                  SECANT_STEPS, STEP_START, STEPS, behind_filename, behind_filenames, behind_name,
+                                  distance_filename)
 from ..addon.ibl.maps import (GLOSSINESS_KNOTS, GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, ROUGHNESS_KNOTS,
                               map_filename)
 from ._build import VERSION_KEY, Graph, float_curve, io_nodes, knot_position, sync_interface, tent_weights, tents
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 10                         # 3: parallax-corrected specular look-ups (distance map)
+VERSION = 11                         # 3: parallax-corrected specular look-ups (distance map)
                                      # 4: diffuse look-ups from the irradiance grid
                                      # 5: the grid's atlas read by Environment Textures (EEVEE)
                                      # 6: glossy look-ups narrowed by their footprint
@@ -39,6 +41,10 @@ VERSION = 10                         # 3: parallax-corrected specular look-ups (
                                      # 9: the view-dependent ladder (glossy3, narrowed look-ups)
                                      # 10: a dielectric's sun lobe normalised by A, every map but
                                      #     the mirror's read sunless by the specular lobe
+                                     # 11: the layer behind the first surface (when baked)
+DISTANCE_BEHIND = behind_name(DISTANCE_NAME)   # the nodes reading the layer behind's distance map
+BEHIND_FILES = {behind_name(name): name for name in BEHIND_MAPS}
+BEHIND_KEY = "platelight_behind"     # on the group: built with the layer behind's look-ups
 CENTRE_NODE = names.PROBE_CENTRE_NODE
 PARALLAX_NODE = names.PARALLAX_NODE
 SUN_NODES = (names.SUN_DIRECTION_NODE, names.SUN_COLOR_NODE, names.SUN_ANGLE_NODE)
@@ -75,14 +81,22 @@ def ensure_probe_group(folder: str, label: str | None = None):
         label = "World" if folder_name == WORLD_FOLDER else (label or folder_name or "World")
         tree = bpy.data.node_groups.new(names.PROBE_GROUP_PREFIX + label, "ShaderNodeTree")
         tree[FOLDER_KEY] = key
-    if tree.get(VERSION_KEY) != VERSION or len(tree.nodes) <= 2:
-        sync_interface(tree, [("OUTPUT", n, t, {}) for n, t in OUTPUTS]
-                       + [("INPUT", n, t, {"hide_value": True}) for n, t in LOOKUP_SOCKETS])
-        tree.nodes.clear()
-        _build(tree)
-        tree[VERSION_KEY] = VERSION
     bind_images(tree)
     return tree
+
+
+def _build_if_needed(tree, behind):
+    """(Re)build the group's nodes when they are from another version or were built with(out)
+    the layer behind's look-ups that the folder now has(n't): those cost a mirror's shading
+    points 16 look-ups, which the groups of other objects never pay."""
+    if tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2 and bool(tree.get(BEHIND_KEY)) == behind:
+        return
+    sync_interface(tree, [("OUTPUT", n, t, {}) for n, t in OUTPUTS]
+                   + [("INPUT", n, t, {"hide_value": True}) for n, t in LOOKUP_SOCKETS])
+    tree.nodes.clear()
+    _build(tree, behind)
+    tree[VERSION_KEY] = VERSION
+    tree[BEHIND_KEY] = behind
 
 
 def _present_single(path: str) -> list:
@@ -135,6 +149,7 @@ def bind_images(tree):
     path = bpy.path.abspath(folder) if folder else ""
     frame = first if kind == "sequence" else None
     records = _frame_records(path, kind)
+    _build_if_needed(tree, _behind_on(path, records))
     record = records.get(frame, {})
     sun = _steady_sun(path, records)
     ladder = _ladder_on(path, records, sun)
@@ -153,6 +168,10 @@ def bind_images(tree):
             filename = sun_lobe.sunless_filename(base, frame) if sun else map_filename(base, frame)
         elif name == DISTANCE_NAME:
             filename = distance_filename(frame)
+        elif name == DISTANCE_BEHIND:
+            filename = distance_filename(frame, behind=True)
+        elif name in BEHIND_FILES:
+            filename = behind_filename(BEHIND_FILES[name], frame)
         elif name == irradiance_grid.GRID_NAME:
             filename = irradiance_grid.grid_filename(frame)
         else:
@@ -208,6 +227,14 @@ def _bind_parallax(tree, record):
     switch.outputs[0].default_value = 1.0 if on else 0.0
 
 
+
+
+def _behind_on(path, records) -> bool:
+    """Does the group read the layer behind? When the scene asks for parallax and the layer
+    behind (scene.platelight.probe_parallax, probe_behind) and every frame present has it."""
+    if not records or not (_scene_setting("probe_parallax") and _scene_setting("probe_behind")):
+        return False
+    return all(os.path.isfile(os.path.join(path, f)) for frame in records for f in behind_filenames(frame))
 
 
 def _frame_records(path, kind) -> dict:
@@ -383,13 +410,15 @@ def _named_vector(g, name):
     return node.outputs["Vector"]
 
 
-def _parallax(g, direction):
-    """(direction, footprint ratio): the specular look-up direction corrected for the shading
-    point's offset from the probe centre, by the distance-impostor search of addon/ibl/distance.py
-    (its numpy reference parallax_search): a linear search over geometric steps, then secant
-    steps; and the hit's distance from the point over its distance from the centre. The switch
-    (0/1, set by the binding) falls back to the uncorrected direction and a ratio of 1, as does a
-    ray that meets nothing."""
+def _parallax(g, direction, behind=False):
+    """(direction, footprint ratio, behind weight): the specular look-up direction corrected for
+    the shading point's offset from the probe centre, by the distance-impostor search of
+    addon/ibl/distance.py (its numpy references parallax_search and, with ``behind``,
+    parallax_layers): a linear search over geometric steps, then secant steps; the hit's distance
+    from the point over its distance from the centre; and, with the layer behind, 1 where the
+    ray passed beside a near occluder and meets what lies past it in the layer behind (None
+    without). The switch (0/1, set by the binding) falls back to the uncorrected direction and a
+    ratio of 1, as does a ray that meets nothing."""
     position = g.node("ShaderNodeNewGeometry").outputs["Position"]
     centre = _named_vector(g, CENTRE_NODE)
     switch = _named_value(g, PARALLAX_NODE, 0.0)
@@ -400,42 +429,79 @@ def _parallax(g, direction):
     def point(t):
         return g.vmath("ADD", p, g.vmath("SCALE", reflected, scale=t))
 
-    def s(t):
-        q = point(t)
+    def radius(q, map_name):
         node = g.node("ShaderNodeTexEnvironment", interpolation="Closest")
-        node["platelight_map"] = DISTANCE_NAME
+        node["platelight_map"] = map_name
         g.link(q, node.inputs["Vector"])
-        return g.math("SUBTRACT", g.vmath("LENGTH", q), node.outputs["Color"])   # colour -> r
+        return node.outputs["Color"]                 # colour -> r
 
+    def s_of(map_name):
+        def s(t):
+            q = point(t)
+            return g.math("SUBTRACT", g.vmath("LENGTH", q), radius(q, map_name))
+        return s
+
+    def looks(found, t):
+        hit_point = point(t)
+        look = g.mix("VECTOR", found, reflected, g.vmath("NORMALIZE", hit_point))
+        ratio = g.math("DIVIDE", t, g.math("MAXIMUM", g.vmath("LENGTH", hit_point), 1e-6))
+        ratio = g.math("MINIMUM", g.math("MAXIMUM", ratio, 0.0), 1.0)
+        return look, g.math("MULTIPLY_ADD", found, g.math("SUBTRACT", ratio, 1.0), 1.0)
+
+    found, t_hit, t_step, gap = _crossing(g, s_of(DISTANCE_NAME), point, 0.0, g.math("MULTIPLY", p_len, STEP_START),
+                                          2.0, STEPS, BEHIND_BISECT if behind else 0)
+    corrected, ratio = looks(found, t_hit)
+    weight = None
+    if behind:
+        jump = g.math("GREATER_THAN", gap, g.math("MULTIPLY", g.vmath("LENGTH", point(t_hit)), BEHIND_JUMP))
+        near = g.math("LESS_THAN", radius(point(t_step), DISTANCE_NAME), g.math("MULTIPLY", p_len, BEHIND_NEAR))
+        passed = g.math("MULTIPLY", g.math("MULTIPLY", found, jump), near)
+        found2, t2, _, _ = _crossing(g, s_of(DISTANCE_BEHIND), point, t_hit, t_step, BEHIND_GROWTH, BEHIND_STEPS)
+        look2, ratio2 = looks(found2, t2)
+        # where the layer behind lets the ray escape, the first layer if it sees the sky there too
+        far = point(g.math("MULTIPLY_ADD", found2, g.math("SUBTRACT", t2, FAR), FAR))
+        seen = g.math("LESS_THAN", g.vmath("LENGTH", far),
+                      g.math("MULTIPLY", radius(far, DISTANCE_NAME), 1.0 + BEHIND_JUMP + 1e-6))
+        corrected = g.mix("VECTOR", passed, corrected, look2)
+        ratio = g.math("MULTIPLY_ADD", passed, g.math("SUBTRACT", ratio2, ratio), ratio)
+        weight = g.math("MULTIPLY", g.math("MULTIPLY", passed, g.math("SUBTRACT", 1.0, seen)), switch)
+    ratio = g.math("MULTIPLY_ADD", switch, g.math("SUBTRACT", ratio, 1.0), 1.0)
+    return g.mix("VECTOR", switch, reflected, corrected), ratio, weight
+
+
+def _crossing(g, s, point, t_start, t_first, growth, steps, bisect=0):
+    """distance._Rays.crossing in nodes: (found 0/1, refined t, the step t that first had s > 0,
+    the gap between the surfaces at the refined bracket's ends) for the steps t_first growth^k
+    after t_start; ``point``: t -> the ray's point."""
     def pick(flag, new, old):                       # flag ? new : old   (flag is 0 or 1)
         return g.math("MULTIPLY_ADD", flag, g.math("SUBTRACT", new, old), old)
 
-    t_a, s_a = 0.0, g.math("MINIMUM", s(0.0), -1e-4)
-    t_b, s_b, found = 0.0, s_a, 0.0
-    for k in range(STEPS):
-        t_k = g.math("MULTIPLY", p_len, STEP_START * 2.0 ** k)
+    t_a, s_a = t_start, g.math("MINIMUM", s(t_start), -1e-4)
+    t_b, s_b, found = t_start, s_a, 0.0
+    for k in range(steps):
+        t_k = g.math("MULTIPLY", t_first, growth ** k)
         s_k = s(t_k)
         newly = g.math("MULTIPLY", g.math("SUBTRACT", 1.0, found), g.math("GREATER_THAN", s_k, 0.0))
         t_b, s_b = pick(newly, t_k, t_b), pick(newly, s_k, s_b)
         before = g.math("SUBTRACT", g.math("SUBTRACT", 1.0, found), newly)
         t_a, s_a = pick(before, t_k, t_a), pick(before, s_k, s_a)
         found = g.math("MAXIMUM", found, newly)
+    t_step = t_b
 
     def secant():
         return g.math("ADD", t_a, g.math("DIVIDE", g.math("MULTIPLY", g.math("SUBTRACT", t_b, t_a), s_a),
                                          g.math("MINIMUM", g.math("SUBTRACT", s_a, s_b), -1e-9)))
-    for _ in range(SECANT_STEPS):
-        t_m = secant()
+    for k in range(SECANT_STEPS + bisect):
+        t_m = secant() if k < SECANT_STEPS else g.math("MULTIPLY", g.math("ADD", t_a, t_b), 0.5)
         s_m = s(t_m)
         hit = g.math("GREATER_THAN", s_m, 0.0)
         t_b, s_b, t_a, s_a = pick(hit, t_m, t_b), pick(hit, s_m, s_b), pick(hit, t_a, t_m), pick(hit, s_a, s_m)
-    t_hit = secant()
-    hit_point = point(t_hit)
-    corrected = g.mix("VECTOR", found, reflected, g.vmath("NORMALIZE", hit_point))
-    ratio = g.math("DIVIDE", t_hit, g.math("MAXIMUM", g.vmath("LENGTH", hit_point), 1e-6))
-    ratio = g.math("MINIMUM", g.math("MAXIMUM", ratio, 0.0), 1.0)
-    ratio = g.math("MULTIPLY_ADD", g.math("MULTIPLY", found, switch), g.math("SUBTRACT", ratio, 1.0), 1.0)
-    return g.mix("VECTOR", switch, reflected, corrected), ratio
+    gap = None
+    if bisect:
+        def surface(t, s_t):                        # r = |q| - s
+            return g.math("SUBTRACT", g.vmath("LENGTH", point(t)), s_t)
+        gap = g.math("ABSOLUTE", g.math("SUBTRACT", surface(t_b, s_b), surface(t_a, s_a)))
+    return found, secant(), t_step, gap
 
 
 def _footprint_glossiness(g, glossiness, ratio):
@@ -617,7 +683,9 @@ def _lobe_albedo(g, roughness, mu):
     return total
 
 
-def _build(tree):
+def _build(tree, behind=False):
+    """The group's nodes; ``behind``: the folder has the layer behind the first surface
+    (distance.parallax_layers), read by the specular map's look-ups."""
     g = Graph(tree)
     gin, gout = io_nodes(g)
     inp = gin.outputs
@@ -628,10 +696,16 @@ def _build(tree):
         g.link(direction, node.inputs["Vector"])
         return node.outputs["Color"]
 
-    def blended(direction, weights, map_names=MAP_NAMES):
+    def reflected_env(map_name, direction):
+        """A specular look-up: from the layer behind where the ray passed beside an occluder."""
+        if behind_weight is None or map_name not in BEHIND_MAPS:
+            return env(map_name, direction)
+        return g.mix("VECTOR", behind_weight, env(map_name, direction), env(behind_name(map_name), direction))
+
+    def blended(direction, weights, map_names=MAP_NAMES, read=env):
         total = None
         for name, weight in zip(map_names, weights):
-            term = g.vmath("SCALE", env(name, direction), scale=weight)
+            term = g.vmath("SCALE", read(name, direction), scale=weight)
             total = term if total is None else g.vmath("ADD", total, term)
         return total
 
@@ -639,7 +713,7 @@ def _build(tree):
     irradiance = g.mix("VECTOR", switch, env("diffuse", inp["Diffuse Direction"]),
                        _irradiance_grid(g, inp["Diffuse Direction"]))
     diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], irradiance)
-    specular_direction, footprint = _parallax(g, inp["Specular Direction"])
+    specular_direction, footprint, behind_weight = _parallax(g, inp["Specular Direction"], behind)
     # The maps are blurred as seen from the centre; a lobe meeting a surface near the shading
     # point covers less of it (docs/decisions.md, "Glossy footprint").
     roughness = float_curve(g, GLOSSINESS_KNOTS, ROUGHNESS_KNOTS,
@@ -653,7 +727,7 @@ def _build(tree):
     streak = None
     for slope in TAP_SLOPES:
         tap = g.vmath("NORMALIZE", g.vmath("ADD", specular_direction, g.vmath("SCALE", spread, scale=slope)))
-        term = blended(tap, specular_weights[1:], STREAK_MAPS)
+        term = blended(tap, specular_weights[1:], STREAK_MAPS, reflected_env)
         streak = term if streak is None else g.vmath("ADD", streak, term)
     streak = g.vmath("SCALE", streak, scale=1.0 / len(TAP_SLOPES))
     # The diffuse map, read once (a streak is far narrower than its lobe), without its sun.

@@ -134,6 +134,15 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         default=True,
         update=lambda self, context: _parallax_changed(self, context),
     )
+    probe_behind: BoolProperty(
+        name="Layer Behind",
+        description="For a mirror-like object, bake what its probe's centre sees behind the first "
+        "surface too (two more renders), so a reflected ray that passes beside a nearby phantom "
+        "shows what lies past it instead of the phantom's edge (needs Parallax Correction; "
+        "switching it makes mirror probes stale)",
+        default=True,
+        update=lambda self, context: _parallax_changed(self, context),
+    )
     probe_diffuse_parallax: BoolProperty(
         name="Diffuse Parallax",
         description="Light the diffuse layer from a grid of irradiance maps over the object, each "

@@ -10,7 +10,7 @@ import tempfile
 
 from ..errors import PlateLightError
 from ..fileio import write_json_atomic
-from ..ibl.distance import distance_filename
+from ..ibl.distance import behind_filenames, distance_filename
 from ..ibl.irradiance_grid import grid_filename
 from ..ibl.maps import MAP_NAMES, map_filename
 from ..ibl.sun_lobe import SUNLESS_MAPS, sunless_filename
@@ -46,7 +46,7 @@ def lookup_filenames(frame: int | None) -> list[str]:
     look-ups' distance map and irradiance grid, the sunless maps and the view-dependent ladder's
     rungs (each present only when the bake wanted it)."""
     return ([distance_filename(frame), grid_filename(frame)] + [sunless_filename(n, frame) for n in SUNLESS_MAPS]
-            + ladder_filenames(frame))
+            + ladder_filenames(frame) + behind_filenames(frame))
 
 
 def read_record(folder: str, frame: int | None) -> dict:

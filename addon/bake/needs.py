@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 
 from ..ibl.anisotropy import narrow_glossiness
+from ..ibl.distance import BEHIND_MIN_HEIGHT
 from ..ibl.maps import MAP_NAMES, map_weights
 
 
@@ -72,6 +73,15 @@ def needs_sharp_specular(materials: list[Lobes]) -> bool:
     return any(lobes.specular and (lobes.map_glossiness is None
                                    or map_weights(lobes.map_glossiness)["specular"] > 0)
                for lobes in materials)
+
+
+def wants_behind_layer(materials: list[Lobes], maps, parallax: bool, behind: bool, distance_height: int) -> bool:
+    """Does a probe bake the layer behind its first surface (operators/bake/behind_render.py)?
+    Only for a sharp reflector (needs_sharp_specular) whose look-ups are parallax-corrected, when
+    the scene asks for it (a blurred lobe averages a silhouette's few texels away), and with a
+    distance map fine enough to tell a silhouette from a floor (distance.BEHIND_MIN_HEIGHT)."""
+    return (behind and parallax and "specular" in maps and distance_height >= BEHIND_MIN_HEIGHT
+            and needs_sharp_specular(materials))
 
 
 def wants_irradiance_grid(maps, diffuse_parallax: bool) -> bool:

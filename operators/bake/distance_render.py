@@ -51,14 +51,15 @@ def remove():
         bpy.data.materials.remove(material)
 
 
-def render_distance(scene, view_layer, folder, clip_end):
+def render_distance(scene, view_layer, folder, clip_end, material=None):
     """Render the distance panorama with the probe's set-up (camera, hidden objects) as it is now;
-    returns (distance map (H, W) float32, warnings).
+    returns (distance map (H, W) float32, warnings). ``material``: the override that emits the
+    distance (default ``distance_material()``; the layer behind passes its peeled copy).
 
     The world stays the scene's and the sky is told by the film's alpha: swapping in a world
     that emits FAR made Cycles rebuild the scene world's light-importance map at the next probe,
     about 1 s per probe under a 2k HDRI (docs/bench/bake.md), more than the probe itself."""
-    material = distance_material()
+    material = material or distance_material()
     render = scene.render
     fmt = render.image_settings
     saved = [(view_layer, "material_override", view_layer.material_override),
@@ -66,7 +67,7 @@ def render_distance(scene, view_layer, folder, clip_end):
              (scene.cycles, "use_denoising", scene.cycles.use_denoising), (render, "filepath", render.filepath),
              (render, "resolution_x", render.resolution_x), (render, "resolution_y", render.resolution_y),
              (render, "film_transparent", render.film_transparent), (fmt, "color_mode", fmt.color_mode)]
-    path = os.path.join(folder, "distance.exr")
+    path = os.path.join(folder, material.name.replace(" ", "_") + ".exr")
     try:
         view_layer.material_override = material
         scene.cycles.samples = 1

@@ -253,6 +253,12 @@ def wants_sharp_probe(ob) -> bool:
     return needs.needs_sharp_specular(_lobes(ob))
 
 
+def wants_behind_layer(ob, maps, settings, distance_height) -> bool:
+    """Does ``ob``'s probe bake the layer behind its first surface (needs.py)?"""
+    return needs.wants_behind_layer(_lobes(ob), maps, settings.probe_parallax, settings.probe_behind,
+                                    distance_height)
+
+
 def owner_visibility(ob, owner_shadows: bool) -> str:
     """How ``ob``'s own probe sees it (needs.owner_visibility)."""
     return needs.owner_visibility(_lobes(ob), owner_shadows)

@@ -28,7 +28,7 @@ from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, M
                                prepare_environment, write_maps)
 from ..common import GEOMETRY_TYPES, addon_preferences
 from ..phantom_surface import apply_phantom_surfaces
-from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin,
+from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin, wants_behind_layer,
                      renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
 from . import distance_render
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
@@ -244,10 +244,11 @@ class ProbeBake:
         return float(np.linalg.norm(centre - origin)) - radius <= self.scene.platelight.probe_distance
 
     # ---- probe rendering
-    def render_probe(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=()):
+    def render_probe(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=(),
+                     behind=False):
         """The panorama seen from ``origin`` (probe_render.ProbeRenderer.render)."""
         return self._renderer.render(origin, hidden=hidden, shadow_only=shadow_only, distance=distance,
-                                     height=height, camera_hidden=camera_hidden)
+                                     height=height, camera_hidden=camera_hidden, behind=behind)
 
     def map_settings(self, sized_height=None):
         """Map sizes: never larger than the probe; a probe sized to its object on screen
@@ -261,13 +262,13 @@ class ProbeBake:
                            lobes=view_lobe.contract_lobes(self.scene.platelight.glossy_lobes))
 
     # ---- hashing
-    def probe_hash(self, ob, origin, maps, owner, grid):
+    def probe_hash(self, ob, origin, maps, owner, grid, behind=False):
         frame = self.scene.frame_current
         seen = sorted((o.name_full, self._describer.seen_digest(o, frame)) for o in self.scene.objects
                       if o is not ob and o is not self._renderer.camera and renderable(o, self.view_layer)
                       and self._in_range(origin, o))
         return probe_hash(self.scene, origin, maps, self._world_digest, seen, self.map_settings(),
-                          self.heights.get(ob.name), owner, grid)
+                          self.heights.get(ob.name), owner, grid, behind)
 
     # ---- steps
     def start(self):
@@ -301,7 +302,10 @@ class ProbeBake:
         origin = probe_origin(ob)
         owner = owner_visibility(ob, self.scene.platelight.probe_owner_shadows)
         wants_grid = needs.wants_irradiance_grid(maps, self.scene.platelight.probe_diffuse_parallax)
-        digest = self.probe_hash(ob, origin, maps, owner, wants_grid)
+        height = self.heights.get(ob.name)
+        wants_behind = wants_behind_layer(ob, maps, self.scene.platelight, distance_render.distance_height(
+            height or self.scene.platelight.probe_height))
+        digest = self.probe_hash(ob, origin, maps, owner, wants_grid, wants_behind)
         if self.use_cache and layout.is_cached(folder, key_frame, digest, maps):
             self.reused.append((ob.name, frame))
             status = "baked (unchanged)"
@@ -312,9 +316,8 @@ class ProbeBake:
         else:
             # the glossy look-ups and the diffuse grid both see the scene through the distance map
             wants_distance = wants_grid or any(name != "diffuse" for name in maps)
-            height = self.heights.get(ob.name)
             placed = {OWNER_RENDER_ARGUMENT[owner]: [ob]}
-            env = self.render_probe(origin, distance=wants_distance, height=height, **placed)
+            env = self.render_probe(origin, distance=wants_distance, height=height, behind=wants_behind, **placed)
             settings = self.map_settings(height)
             result = compute_maps(env, settings, which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
@@ -327,6 +330,7 @@ class ProbeBake:
                     self._renderer.distance, folder, key_frame, points - origin))
             else:
                 distance_maps.remove_distance(folder, key_frame)
+            self._write_behind(folder, key_frame, settings, wants_behind)
             if wants_grid:
                 grid = self._write_irradiance_grid(env, points, origin, settings, folder, key_frame)
             else:
@@ -378,6 +382,16 @@ class ProbeBake:
         else:
             view_lobe.remove(folder, key_frame)
         return record
+
+    def _write_behind(self, folder, key_frame, settings, wanted):
+        """The layer behind the first surface (behind_render.py): its specular map and distance
+        map beside the probe's, or neither."""
+        if not wanted:
+            distance_maps.remove_behind(folder, key_frame)
+            return
+        env, (dist, warnings) = self._renderer.behind
+        result = compute_maps(env, settings, which=("specular",))
+        distance_maps.write_behind(folder, result.maps["specular"], dist, key_frame)
 
     def _write_irradiance_grid(self, env, points, origin, settings, folder, key_frame):
         """The diffuse maps of a grid of points over the object's bounding box, seen through its

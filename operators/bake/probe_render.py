@@ -18,7 +18,7 @@ from ...addon.exr_io import read_exr
 from ...addon.ibl.equirect import downsample_area
 from ..common import addon_preferences
 from ..world_environment import world_image
-from . import distance_render
+from . import behind_render, distance_render
 
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
@@ -56,6 +56,7 @@ class ProbeRenderer:
         self._tmpdir = None
         self._render_results = None
         self.distance = None
+        self.behind = None                   # (panorama, (distance map, warnings)) behind the first surface
         self._world = None                   # the world's image when the world is exactly one
         self._world_maps = {}                # height -> that image area-averaged to the probe
 
@@ -136,14 +137,15 @@ class ProbeRenderer:
                 if ob.is_holdout:
                     state.set(ob, "is_holdout", False)
 
-    def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=()):
+    def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=(),
+               behind=False):
         """Render the panorama seen from ``origin`` (world space), ``height`` px high (default the
         scene's Probe Height), with ``hidden`` objects hidden
         and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
         shades the floor under itself), ``camera_hidden`` ones to camera rays only; returns float32 (H, 2H, 3), first row the top (the
         Environment Texture's layout). With ``distance`` the distance map is rendered too
-        (``self.distance``: (map, warnings), distance_render.py)."""
-        global render_count
+        (``self.distance``: (map, warnings), distance_render.py); with ``behind`` also the layer
+        behind the first surface (``self.behind``: (panorama, (map, warnings)), behind_render.py)."""
         if self.camera is None:            # set up on the first render: cache hits never need it
             self.begin()
         self.camera.location = tuple(float(x) for x in origin)
@@ -164,24 +166,36 @@ class ProbeRenderer:
                     if getattr(ob, flag):
                         restore.append((ob, flag, True))
                         setattr(ob, flag, False)
-            try:
-                bpy.ops.render.render(write_still=True, layer=self.view_layer.name)
-            except RuntimeError as exc:
-                reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
-                raise PlateLightError(f"Cycles could not render the probe at {tuple(round(float(x), 3) for x in origin)}: "
-                                      f"{reason}") from None
-            render_count += 1
+            env = self._render_panorama(origin, height)
             self.distance = (distance_render.render_distance(self.scene, self.view_layer, self._tmpdir,
                                                              self.camera.data.clip_end)
                              if distance else None)
+            self.behind = None
+            if behind:
+                with behind_render.peeled(self.scene):
+                    behind_env = self._render_panorama(origin, height)
+                self.behind = (behind_env, distance_render.render_distance(
+                    self.scene, self.view_layer, self._tmpdir, self.camera.data.clip_end,
+                    behind_render.peeled_distance_material()))
         finally:
             for ob, flag, value in restore:
                 setattr(ob, flag, value)
+        return env
+
+    def _render_panorama(self, origin, height):
+        """One render of the panorama as set up now: float32 (H, 2H, 3), the sky laid under."""
+        global render_count
+        try:
+            bpy.ops.render.render(write_still=True, layer=self.view_layer.name)
+        except RuntimeError as exc:
+            reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
+            raise PlateLightError(f"Cycles could not render the probe at {tuple(round(float(x), 3) for x in origin)}: "
+                                  f"{reason}") from None
+        render_count += 1
         if self._world is None:
             return read_exr(self.scene.render.filepath, "RGB")
         rgba = read_exr(self.scene.render.filepath, "RGBA")
-        sky = self._world_map(height)
-        return rgba[..., :3] + (1.0 - rgba[..., 3:4]) * sky
+        return rgba[..., :3] + (1.0 - rgba[..., 3:4]) * self._world_map(height)
 
     def _exact_world(self):
         """The world as an array (in world axes, times its strength) when it is exactly an
@@ -217,6 +231,7 @@ class ProbeRenderer:
                 bpy.data.images.remove(image)
         self._render_results = None
         distance_render.remove()
+        behind_render.remove()
         if self._tmpdir:
             shutil.rmtree(self._tmpdir, ignore_errors=True)
             self._tmpdir = None

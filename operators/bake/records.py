@@ -13,7 +13,7 @@ from ...addon.bake.hashing import content_hash
 from ...addon.bake.layout import lookup_filenames
 from ...addon.bake.needs import OWNER_INDIRECT
 from ...addon.bake.probe_size import MAX_SAMPLE_FACTOR, SAMPLE_ROWS
-from ...addon.ibl.distance import VERSION as DISTANCE_VERSION
+from ...addon.ibl.distance import BEHIND_VERSION, VERSION as DISTANCE_VERSION
 from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
 from ...addon.ibl.maps import MapSettings, map_filename
 from ...addon.ibl import view_lobe
@@ -21,12 +21,12 @@ from ...addon.ibl.sun_lobe import VERSION as SUN_LOBE_VERSION
 
 
 def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_height=None, owner=None,
-               grid=False):
+               grid=False, behind=False):
     """The hash of one object's probe: where it sits, which maps, the world, the bake settings,
     the probe's height when it is sized to the object on screen, Cycles' bounces and ``seen``
-    (sorted (object, description digest) of what the probe sees); ``owner`` and ``grid`` as the
-    bake decided them (needs.owner_visibility, needs.wants_irradiance_grid); the glossy lobes the
-    bake's ``map_settings`` blur with."""
+    (sorted (object, description digest) of what the probe sees); ``owner``, ``grid`` and
+    ``behind`` as the bake decided them (needs.owner_visibility, needs.wants_irradiance_grid,
+    needs.wants_behind_layer); the glossy lobes the bake's ``map_settings`` blur with."""
     settings = scene.platelight
     cycles = scene.cycles
     sized = {"sized_height": sized_height} if sized_height else {}     # older records stay valid
@@ -34,8 +34,9 @@ def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_heig
     indirect = {"owner": owner} if owner == OWNER_INDIRECT else {}
     # A probe with an irradiance grid is another bake; one without hashes as before.
     with_grid = {"irradiance_grid": GRID_VERSION} if grid else {}
+    with_behind = {"behind": BEHIND_VERSION} if behind else {}     # likewise the layer behind
     return content_hash({
-        **sized, **indirect, **with_grid,
+        **sized, **indirect, **with_grid, **with_behind,
         "origin": np.asarray(origin), "maps": list(maps), "world": world_digest,
         "distance": DISTANCE_VERSION, **_sun_key(scene), **_ladder_key(scene),
         "samples_rule": [SAMPLE_ROWS, MAX_SAMPLE_FACTOR],
