@@ -116,6 +116,24 @@ def distance_map(depth: np.ndarray, clip_end: float) -> tuple[np.ndarray, list[s
     return out, warnings
 
 
+def near_silhouette(distance: np.ndarray, reach: float) -> bool:
+    """Does the map show an occluder's edge within BEHIND_NEAR ``reach`` of the centre (``reach``:
+    how far the object's surface extends from it): a texel that near whose neighbour (across
+    the edge) is more than BEHIND_JUMP farther? Only then can a reflected ray pass behind
+    something, and only then is the layer behind worth its renders and its look-ups (a ball on
+    a plain floor: none)."""
+    d = np.asarray(distance, dtype=np.float64)
+    near = d < BEHIND_NEAR * float(reach)
+    if not near.any():
+        return False
+    farther = np.zeros_like(near)
+    for neighbour in (np.roll(d, 1, axis=1), np.roll(d, -1, axis=1)):    # the seam wraps
+        farther |= neighbour > (1.0 + BEHIND_JUMP) * d
+    farther[1:] |= d[:-1] > (1.0 + BEHIND_JUMP) * d[1:]
+    farther[:-1] |= d[1:] > (1.0 + BEHIND_JUMP) * d[:-1]
+    return bool((near & farther).any())
+
+
 def coverage_warning(distance: np.ndarray, offsets: np.ndarray) -> str | None:
     """A sentence when the object's surface (``offsets``: its points relative to the probe
     centre, (N, 3)) reaches past the surfaces its distance map holds in more than 2 % of its

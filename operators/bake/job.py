@@ -245,7 +245,7 @@ class ProbeBake:
 
     # ---- probe rendering
     def render_probe(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=(),
-                     behind=False):
+                     behind=None):
         """The panorama seen from ``origin`` (probe_render.ProbeRenderer.render)."""
         return self._renderer.render(origin, hidden=hidden, shadow_only=shadow_only, distance=distance,
                                      height=height, camera_hidden=camera_hidden, behind=behind)
@@ -317,7 +317,10 @@ class ProbeBake:
             # the glossy look-ups and the diffuse grid both see the scene through the distance map
             wants_distance = wants_grid or any(name != "diffuse" for name in maps)
             placed = {OWNER_RENDER_ARGUMENT[owner]: [ob]}
-            env = self.render_probe(origin, distance=wants_distance, height=height, behind=wants_behind, **placed)
+            points = (distance_render.surface_points(ob, self.context.evaluated_depsgraph_get())
+                      if wants_distance else None)
+            reach = float(np.linalg.norm(points - origin, axis=1).max()) if wants_behind else None
+            env = self.render_probe(origin, distance=wants_distance, height=height, behind=reach, **placed)
             settings = self.map_settings(height)
             result = compute_maps(env, settings, which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
@@ -325,12 +328,11 @@ class ProbeBake:
             sun = self._bake_lookup_maps(folder, env, settings, maps, key_frame)
             grid = {}
             if wants_distance:
-                points = distance_render.surface_points(ob, self.context.evaluated_depsgraph_get())
                 self.warnings.extend(f"{ob.name}: {w}" for w in distance_render.write_probe_distance(
                     self._renderer.distance, folder, key_frame, points - origin))
             else:
                 distance_maps.remove_distance(folder, key_frame)
-            self._write_behind(folder, key_frame, settings, wants_behind)
+            self._write_behind(folder, key_frame, settings)
             if wants_grid:
                 grid = self._write_irradiance_grid(env, points, origin, settings, folder, key_frame)
             else:
@@ -383,13 +385,13 @@ class ProbeBake:
             view_lobe.remove(folder, key_frame)
         return record
 
-    def _write_behind(self, folder, key_frame, settings, wanted):
+    def _write_behind(self, folder, key_frame, settings):
         """The layer behind the first surface (behind_render.py): its specular map and distance
-        map beside the probe's, or neither."""
-        if not wanted:
+        map beside the probe's, or neither (not wanted, or no near occluder's edge to pass)."""
+        if self._renderer.behind is None:
             distance_maps.remove_behind(folder, key_frame)
             return
-        env, (dist, warnings) = self._renderer.behind
+        env, (dist, _) = self._renderer.behind
         result = compute_maps(env, settings, which=("specular",))
         distance_maps.write_behind(folder, result.maps["specular"], dist, key_frame)
 

@@ -15,6 +15,7 @@ from ...addon import names
 from ...addon.bake.probe_size import samples_for
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
+from ...addon.ibl.distance import near_silhouette
 from ...addon.ibl.equirect import downsample_area
 from ..common import addon_preferences
 from ..world_environment import world_image
@@ -138,14 +139,16 @@ class ProbeRenderer:
                     state.set(ob, "is_holdout", False)
 
     def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=(),
-               behind=False):
+               behind=None):
         """Render the panorama seen from ``origin`` (world space), ``height`` px high (default the
         scene's Probe Height), with ``hidden`` objects hidden
         and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
         shades the floor under itself), ``camera_hidden`` ones to camera rays only; returns float32 (H, 2H, 3), first row the top (the
         Environment Texture's layout). With ``distance`` the distance map is rendered too
-        (``self.distance``: (map, warnings), distance_render.py); with ``behind`` also the layer
-        behind the first surface (``self.behind``: (panorama, (map, warnings)), behind_render.py)."""
+        (``self.distance``: (map, warnings), distance_render.py); with ``behind`` (the object's
+        reach from ``origin``) also the layer behind the first surface when the distance map
+        shows a near occluder's edge (``self.behind``: (panorama, (map, warnings)), else None;
+        behind_render.py)."""
         if self.camera is None:            # set up on the first render: cache hits never need it
             self.begin()
         self.camera.location = tuple(float(x) for x in origin)
@@ -171,7 +174,7 @@ class ProbeRenderer:
                                                              self.camera.data.clip_end)
                              if distance else None)
             self.behind = None
-            if behind:
+            if behind and self.distance and near_silhouette(self.distance[0], behind):
                 with behind_render.peeled(self.scene):
                     behind_env = self._render_panorama(origin, height)
                 self.behind = (behind_env, distance_render.render_distance(

@@ -29,7 +29,7 @@ def bench_module():
 
 def test_distance_map_is_the_radial_distance(bpy_clean, tmp_path, studio_hdris):
     """A probe 0.5 m above a floor: below the horizon the map holds 0.5 / sin(depression), the
-    radial distance; above it, FAR (the world). The mirror's layer behind sees past the floor."""
+    radial distance; above it, FAR (the world). No layer behind: nothing near to pass behind."""
     bpy = bpy_clean
     bench = bench_module()
     scene, floor, sphere = bench.build(bpy, str(studio_hdris["city"]), bench.MATERIALS["mirror"])
@@ -51,11 +51,8 @@ def test_distance_map_is_the_radial_distance(bpy_clean, tmp_path, studio_hdris):
     rel = np.abs(np.median(dist[below], axis=1) / expected - 1)
     assert rel.max() < 0.03, rel.max()
     assert (dist[elevation > np.radians(1)] == dm.FAR).all()
-    # a mirror's layer behind: the peel passes the floor, so it sees the world everywhere
-    behind = read_exr(tmp_path / "maps" / "Sphere" / dm.distance_filename(behind=True), "RGB")[..., 0]
-    assert behind.shape == dist.shape and (behind == dm.FAR).all()
-    specular = read_exr(tmp_path / "maps" / "Sphere" / dm.behind_filename("specular"), "RGB")
-    assert np.isfinite(specular).all() and specular.max() > 0
+    # a mirror on a plain floor: no near occluder's edge, so no layer behind
+    assert not any((tmp_path / "maps" / "Sphere" / f).exists() for f in dm.behind_filenames())
     # the bake leaves no helper datablocks behind, and the floor's material as it was
     assert "PlateLight Probe Distance" not in bpy.data.materials
     assert pl_names.PROBE_DISTANCE_BEHIND not in bpy.data.materials
@@ -350,6 +347,15 @@ def test_layer_behind_finds_what_a_ray_passing_beside_a_box_meets():
     assert (weight[~hidden] == 1).mean() < 0.02, (weight[~hidden] == 1).mean()
     assert right_layer[~hidden].mean() > right(plain)[~hidden].mean() + 0.05
     assert ((ratio >= 0) & (ratio <= 1)).all()
+
+
+def test_a_near_occluders_edge_is_what_asks_for_the_layer_behind():
+    """distance.near_silhouette: the box's edges within reach, a plain floor's horizon not."""
+    first_map, _ = layered_box_maps(512)
+    assert dm.near_silhouette(first_map, 0.5)
+    assert not dm.near_silhouette(first_map, 0.05)             # the box is 20 reaches away
+    for height in (256, 1024):
+        assert not dm.near_silhouette(floor_distance_map(height, 0.5), 0.5)
 
 
 @pytest.mark.parametrize("height", [256, 1024])
