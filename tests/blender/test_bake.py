@@ -161,13 +161,15 @@ def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
     names = lambda n: sorted(p.name for p in maps_folder(tmp_path, n).glob("*.exr"))
     # the diffuse look-up reads the irradiance grid, seen through the distance map
     assert names("Matte") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr"]
-    assert names("Mirror") == ["distance.exr", "specular.exr"]
+    # the mirror sees the other balls close by: it also bakes the layer behind them
+    assert names("Mirror") == ["distance.exr", "distance_behind.exr", "specular.exr", "specular_behind.exr"]
     # a lobe that reads glossy2 gets the view-dependent ladder's rungs (Glossy Lobes' default)
     ladder = ["ladder_glossy1.exr", "ladder_glossy2.exr", "ladder_glossy3.exr"]
     assert names("Plain") == ["diffuse.exr", "diffuse_grid.exr", "distance.exr", "glossy1.exr", "glossy2.exr",
                               *ladder, "specular.exr"]
-    # brushed: its narrow axis reads above glossy2's glossiness
-    assert names("Brushed") == ["distance.exr", "glossy2.exr", *ladder, "specular.exr"]
+    # brushed: its narrow axis reads above glossy2's glossiness (a sharp reflector: the layer behind)
+    assert names("Brushed") == ["distance.exr", "distance_behind.exr", "glossy2.exr", *ladder, "specular.exr",
+                                "specular_behind.exr"]
     # The mirror turns matte: the next bake computes only the diffuse map and drops the old one.
     node = mirror.data.materials[0].node_tree.nodes["Group"]
     node.inputs["Diffuse Albedo"].default_value = (0.5, 0.5, 0.5, 1)

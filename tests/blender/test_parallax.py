@@ -179,6 +179,29 @@ def test_footprint_ratio_is_the_hit_distance_over_its_distance_from_the_centre()
     assert (ratio[~down] == 1.0).all()
 
 
+def render_unit_sphere(bpy, tmp_path, folder, params, size):
+    """A unit sphere at the origin with an SBRDF ``params`` reading the probe ``folder`` (centre
+    at the origin), its normal the object coordinate; returns (image, interior mask, the
+    masked pixels' P, N and reflected view direction)."""
+    import sbrdf_scene as sc
+    from bl_ext.dev.platelight.node_groups import sbrdf_material as sm
+
+    (folder / "bake.json").write_text(json.dumps({"origin": [0.0, 0.0, 0.0]}))
+    (sphere,), _ = sc.setup_scene(bpy, 1, size=size)
+    sphere.platelight.probe_dir = str(folder)
+    material = sm.apply_sbrdf_material(sphere, params=params)
+    coordinates = material.node_tree.nodes.new("ShaderNodeTexCoord")
+    material.node_tree.links.new(coordinates.outputs["Object"], sm.sbrdf_node(material).inputs["Normal"])
+    image = sc.render(bpy, tmp_path / "shaded.exr")
+    sphere.material_slots[0].material = sc.position_material(bpy)
+    pos = sc.render(bpy, tmp_path / "position.exr")
+    mask = sc.interior_mask(pos[..., 3]) & sc.interior_mask(image[..., 3])
+    P = ((pos[..., :3].astype(np.float64) - 0.5) * 4.0)[mask]
+    N = P / np.linalg.norm(P, axis=1, keepdims=True)
+    view = np.broadcast_to(sc.VIEW, N.shape)
+    return image, mask, P, N, 2 * (view * N).sum(1, keepdims=True) * N - view
+
+
 def test_glossy_lookups_narrow_with_their_footprint_as_numpy_says(bpy_clean, tmp_path):
     """A glossy sphere whose probe sees a floor 0.3 m under it: each map's weight in the render
     (maps of pure red, green, blue and black, so the colour is the weights) against numpy's
@@ -187,7 +210,6 @@ def test_glossy_lookups_narrow_with_their_footprint_as_numpy_says(bpy_clean, tmp
     import dataclasses
 
     import sbrdf_scene as sc
-    from bl_ext.dev.platelight.node_groups import sbrdf_material as sm
     from platelight.addon.ibl.lobe_tilt import tilted
     from platelight.addon.ibl.maps import footprint_glossiness, map_weights
     from platelight.addon.material.params import SBRDFParams
@@ -199,25 +221,11 @@ def test_glossy_lookups_narrow_with_their_footprint_as_numpy_says(bpy_clean, tmp
                            for name, c in colours.items()})
     dist = floor_distance_map(64, 1.3)
     dm.write_distance(folder, dist)
-    (folder / "bake.json").write_text(json.dumps({"origin": [0.0, 0.0, 0.0]}))
-    (sphere,), _ = sc.setup_scene(bpy, 1, size=64)
-    sphere.platelight.probe_dir = str(folder)
     glossiness = 0.55
     params = dataclasses.replace(SBRDFParams(), diffuse_albedo=(0.0, 0.0, 0.0),
                                  specular_albedo=(1.0, 1.0, 1.0), glossiness=glossiness,
                                  fresnel_falloff=1e-4)
-    material = sm.apply_sbrdf_material(sphere, params=params)
-    coordinates = material.node_tree.nodes.new("ShaderNodeTexCoord")
-    material.node_tree.links.new(coordinates.outputs["Object"], sm.sbrdf_node(material).inputs["Normal"])
-    image = sc.render(bpy, tmp_path / "weights.exr")
-    sphere.material_slots[0].material = sc.position_material(bpy)
-    pos = sc.render(bpy, tmp_path / "position.exr")
-
-    mask = sc.interior_mask(pos[..., 3]) & sc.interior_mask(image[..., 3])
-    P = ((pos[..., :3].astype(np.float64) - 0.5) * 4.0)[mask]
-    N = P / np.linalg.norm(P, axis=1, keepdims=True)
-    view = np.broadcast_to(sc.VIEW, N.shape)
-    reflected = 2 * (view * N).sum(1, keepdims=True) * N - view
+    image, mask, P, N, reflected = render_unit_sphere(bpy, tmp_path, folder, params, 64)
     # the group looks up along R tilted towards N (Fresnel off: n' = the glossiness)
     _, ratio = dm.parallax_search(dist, P, tilted(reflected, N, glossiness))
     narrowed = footprint_glossiness(glossiness, ratio)
@@ -388,7 +396,6 @@ def test_mirror_reads_the_layer_behind_where_numpy_says(bpy_clean, tmp_path):
     distance.parallax_layers."""
     import sbrdf_scene as sc
     from bl_ext.dev.platelight.node_groups import probe_maps
-    from bl_ext.dev.platelight.node_groups import sbrdf_material as sm
     from platelight.addon.material.params import SBRDFParams
 
     bpy = bpy_clean
@@ -399,24 +406,10 @@ def test_mirror_reads_the_layer_behind_where_numpy_says(bpy_clean, tmp_path):
     first_map, behind_map = layered_box_maps(512, scale=2.0)
     dm.write_distance(folder, first_map)
     dm.write_behind(folder, np.ones((64, 128, 3), np.float32) * np.float32((1, 0, 0)), behind_map)
-    (folder / "bake.json").write_text(json.dumps({"origin": [0.0, 0.0, 0.0]}))
-    (sphere,), _ = sc.setup_scene(bpy, 1, size=160)
-    sphere.platelight.probe_dir = str(folder)
     params = SBRDFParams(diffuse_albedo=(0.0, 0.0, 0.0), specular_albedo=(1.0, 1.0, 1.0), glossiness=1.0,
                          fresnel_falloff=1e-4)
-    material = sm.apply_sbrdf_material(sphere, params=params)
+    image, mask, P, _, reflected = render_unit_sphere(bpy, tmp_path, folder, params, 160)
     assert probe_maps.find_probe_group(str(folder)).get(probe_maps.BEHIND_KEY)
-    coordinates = material.node_tree.nodes.new("ShaderNodeTexCoord")
-    material.node_tree.links.new(coordinates.outputs["Object"], sm.sbrdf_node(material).inputs["Normal"])
-    image = sc.render(bpy, tmp_path / "behind.exr")
-    sphere.material_slots[0].material = sc.position_material(bpy)
-    pos = sc.render(bpy, tmp_path / "position.exr")
-
-    mask = sc.interior_mask(pos[..., 3]) & sc.interior_mask(image[..., 3])
-    P = ((pos[..., :3].astype(np.float64) - 0.5) * 4.0)[mask]
-    N = P / np.linalg.norm(P, axis=1, keepdims=True)
-    view = np.broadcast_to(sc.VIEW, N.shape)
-    reflected = 2 * (view * N).sum(1, keepdims=True) * N - view
     _, _, want = dm.parallax_layers(first_map, behind_map, P, reflected)
     rgb = image[..., :3][mask].astype(np.float64)
     got = rgb[:, 0] / np.maximum(rgb[:, 0] + rgb[:, 1], 1e-9)

@@ -45,7 +45,7 @@ def test_mirror_probe_follows_its_size_on_screen_and_matte_keeps_probe_height(bp
     # Twice as close: ~100 px across -> 256; only the mirror's probe depends on the camera.
     scene.camera.location.y = -5.0
     bake(bpy)
-    assert probe_renders() == renders + 1
+    assert probe_renders() == renders + 2           # its panorama, and the layer behind the matte ball
     assert probe_size(tmp_path, "Mirror") == [512, 256]
     assert read_map(tmp_path, "Mirror", "specular").shape == (256, 512, 3)
 
