@@ -23,9 +23,9 @@ from ..addon import names
 from ..addon.bake.layout import WORLD_FOLDER, read_record
 from ..addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ..addon.ibl.anisotropy import TAP_SLOPES
-from ..addon.ibl.distance import (BEHIND_BISECT, BEHIND_GROWTH, BEHIND_JUMP, BEHIND_MAPS, BEHIND_NEAR, BEHIND_STEPS, DISTANCE_NAME, FAR,
-                                  SECANT_STEPS, STEP_START, STEPS, behind_filename, behind_filenames, behind_name,
-                                  distance_filename)
+from ..addon.ibl.distance import (BEHIND_BISECT, BEHIND_GROWTH, BEHIND_JUMP, BEHIND_MAPS, BEHIND_NEAR, BEHIND_STEPS,
+                                  DISTANCE_NAME, FAR, SECANT_STEPS, STEP_START, STEPS, behind_filename,
+                                  behind_filenames, behind_name, distance_filename)
 from ..addon.ibl.maps import (GLOSSINESS_KNOTS, GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, ROUGHNESS_KNOTS,
                               map_filename)
 from ._build import VERSION_KEY, Graph, float_curve, io_nodes, knot_position, sync_interface, tent_weights, tents
@@ -88,7 +88,7 @@ def ensure_probe_group(folder: str, label: str | None = None):
 def _build_if_needed(tree, behind):
     """(Re)build the group's nodes when they are from another version or were built with(out)
     the layer behind's look-ups that the folder now has(n't): those cost a mirror's shading
-    points 16 look-ups, which the groups of other objects never pay."""
+    points about 20 look-ups, which the groups of other objects never pay."""
     if tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2 and bool(tree.get(BEHIND_KEY)) == behind:
         return
     sync_interface(tree, [("OUTPUT", n, t, {}) for n, t in OUTPUTS]

@@ -286,8 +286,9 @@ class _Rays:
         """(found, t, t_b, gap) per ray: the first of the steps t_first growth^k (k < steps) where
         s(t) = |p + t R| - r(p + t R) turns positive after t_start (s there taken as at most
         -1e-4), refined by SECANT_STEPS secant steps and ``bisect`` bisection steps (t), the step
-        that first had s > 0 (t_b), and |r_b - r_a| at the refined bracket's ends (gap). Each step evaluates only the rays still unresolved, and the secant refines only
-        those that crossed: a resolved ray's bracket never changes again."""
+        that first had s > 0 (t_b), and |r_b - r_a| at the refined bracket's ends (gap). Each
+        step evaluates only the rays still unresolved, and the refinement only those that
+        crossed: a resolved ray's bracket never changes again."""
         def s(t, index):
             q = [a[index] + t * b[index] for a, b in zip(self.p, self.r)]
             return _norm(q) - _lookup_xyz(distance, *q)
