@@ -458,7 +458,7 @@ def _parallax(g, direction, behind=False):
         passed = g.math("MULTIPLY", g.math("MULTIPLY", found, jump), near)
         found2, t2, _, _ = _crossing(g, s_of(DISTANCE_BEHIND), point, t_hit, t_step, BEHIND_GROWTH, BEHIND_STEPS)
         look2, ratio2 = looks(found2, t2)
-        # where the layer behind lets the ray escape, the first layer if it sees the sky there too
+        # the point the ray meets (or, escaping, its point at FAR): does the centre see it?
         far = point(g.math("MULTIPLY_ADD", found2, g.math("SUBTRACT", t2, FAR), FAR))
         seen = g.math("LESS_THAN", g.vmath("LENGTH", far),
                       g.math("MULTIPLY", radius(far, DISTANCE_NAME), 1.0 + BEHIND_JUMP + 1e-6))

@@ -228,9 +228,9 @@ def parallax_layers(distance: np.ndarray, behind: np.ndarray, p: np.ndarray, ref
 
     The first layer's search is refined further (BEHIND_BISECT). A ray whose search ends on a
     jump of the distance map (BEHIND_JUMP) at an occluder nearer than BEHIND_NEAR |p| passed
-    beside it, behind it as the centre sees it. It is followed on from
-    there through the layer behind. The surface it meets is read from the first layer where the
-    centre sees it (weight 0), else from the layer behind (weight 1)."""
+    beside it, behind it as the centre sees it. It is followed on from there through the layer
+    behind. The surface it meets is read from the first layer where the centre sees it (weight
+    0), else from the layer behind (weight 1)."""
     rays = _Rays(p, reflected)
     found, t, t_behind, gap = rays.crossing(distance, np.zeros_like(rays.length), rays.length * STEP_START, 2.0,
                                             STEPS, BEHIND_BISECT)
@@ -243,8 +243,7 @@ def parallax_layers(distance: np.ndarray, behind: np.ndarray, p: np.ndarray, ref
         sub = rays.subset(passed)
         found2, t2, _, _ = sub.crossing(behind, t[passed], t_behind[passed], BEHIND_GROWTH, BEHIND_STEPS)
         look2, ratio2 = sub.looks(found2, t2)
-        # where the layer behind lets the ray escape, the first layer is read along it if it
-        # sees the sky there too
+        # the point the ray meets (or, escaping, its point at FAR): does the centre see it?
         far = sub.points(np.where(found2, t2, FAR))
         seen = _norm(far) <= (1.0 + BEHIND_JUMP) * _lookup_xyz(distance, *far)
         look[passed], ratio[passed] = look2, ratio2
