@@ -22,6 +22,7 @@ import bpy
 from ...addon import names
 from ...node_groups.ray_twin import material_output
 
+
 def add_peel(tree, shader_socket, output_node):
     """Link ``shader_socket`` to ``output_node``'s Surface through a Mix Shader that is a
     Transparent BSDF for camera rays at their first hit and on back faces; returns the nodes
