@@ -53,6 +53,7 @@ SECANT_STEPS = 3
 # meet (17 % without the layer behind); rays whose hit the centre sees: 97 % right, 88 %
 # without the bisection, 0.6 % read the layer behind.
 BEHIND_NAME = "behind"       # distance_behind.exr, specular_behind.exr
+BEHIND_MAPS = ("specular",)  # the maps read behind the first surface (a mirror's)
 BEHIND_VERSION = 1           # part of the probe hash of a probe with the layer behind
 BEHIND_JUMP = 0.2
 BEHIND_NEAR = 10.0
@@ -162,9 +163,6 @@ def write_distance(folder, distance: np.ndarray, frame: int | None = None, behin
 def remove_distance(folder, frame: int | None = None) -> None:
     """Remove a distance map no longer wanted (the object's material became matte)."""
     remove_if_present(os.path.join(os.fspath(folder), distance_filename(frame)))
-
-
-BEHIND_MAPS = ("specular",)          # the maps read behind the first surface (a mirror's)
 
 
 def behind_filenames(frame: int | None = None) -> list[str]:
@@ -285,56 +283,65 @@ class _Rays:
         """(found, t, t_b, gap) per ray: the first of the steps t_first growth^k (k < steps) where
         s(t) = |p + t R| - r(p + t R) turns positive after t_start (s there taken as at most
         -1e-4), refined by SECANT_STEPS secant steps and ``bisect`` bisection steps (t), the step
-        that first had s > 0 (t_b), and |r_b - r_a| at the refined bracket's ends (gap). Each
-        step evaluates only the rays still unresolved, and the refinement only those that
-        crossed: a resolved ray's bracket never changes again."""
-        def s(t, index):
-            q = [a[index] + t * b[index] for a, b in zip(self.p, self.r)]
+        that first had s > 0 (t_b), and |r_b - r_a| at the refined bracket's ends (gap; None
+        without bisection steps). Each step evaluates only the rays still unresolved, and the
+        refinement only those that crossed: a resolved ray's bracket never changes again."""
+        def s(t, pp, rr):
+            q = [a + t * b for a, b in zip(pp, rr)]
             return _norm(q) - _lookup_xyz(distance, *q)
 
         count = len(self.length)
-        t_a, s_a, t_b, s_b = (np.zeros(count, self.length.dtype) for _ in range(4))
+        dtype = self.length.dtype
+        t_a, s_a, t_b, s_b = (np.zeros(count, dtype) for _ in range(4))
         rays = np.arange(count)
-        open_t = np.asarray(t_start, self.length.dtype)
-        open_s = np.minimum(s(open_t, rays), -1e-4).astype(self.length.dtype)
+        open_p, open_r, open_first = self.p, self.r, t_first
+        open_t = np.asarray(t_start, dtype)
+        open_s = np.minimum(s(open_t, open_p, open_r), -1e-4).astype(dtype)
         for k in range(steps):
             if not len(rays):
                 break
-            t_k = t_first[rays] * growth ** k
-            s_k = s(t_k, rays)
+            t_k = open_first * growth ** k
+            s_k = s(t_k, open_p, open_r)
             crossed = s_k > 0
             ends = rays[crossed]
             t_a[ends], s_a[ends], t_b[ends], s_b[ends] = open_t[crossed], open_s[crossed], t_k[crossed], s_k[crossed]
             stay = ~crossed
-            rays, open_t, open_s = rays[stay], t_k[stay], s_k[stay]
+            rays, open_first, open_t, open_s = rays[stay], open_first[stay], t_k[stay], s_k[stay]
+            open_p, open_r = [c[stay] for c in open_p], [c[stay] for c in open_r]
         found = np.ones(count, bool)
         found[rays] = False
         hits = np.flatnonzero(found)
+        hit_p, hit_r = [c[hits] for c in self.p], [c[hits] for c in self.r]
         ta, sa, tb, sb = t_a[hits], s_a[hits], t_b[hits], s_b[hits]
         for k in range(SECANT_STEPS + bisect):
             t_m = ta + (tb - ta) * sa / np.minimum(sa - sb, -1e-9) if k < SECANT_STEPS else 0.5 * (ta + tb)
-            s_m = s(t_m, hits)
+            s_m = s(t_m, hit_p, hit_r)
             hit = s_m > 0
             tb, sb = np.where(hit, t_m, tb), np.where(hit, s_m, sb)
             ta, sa = np.where(hit, ta, t_m), np.where(hit, sa, s_m)
-        t = np.zeros(count, self.length.dtype)
+        t = np.zeros(count, dtype)
         t[hits] = ta + (tb - ta) * sa / np.minimum(sa - sb, -1e-9)
-        # how far apart the surfaces at the bracket's ends are (r = |q| - s): a bracket narrowed
-        # onto a surface has them together, one narrowed onto a silhouette keeps them apart
-        def reach(t):
-            return _norm([a[hits] + t * b[hits] for a, b in zip(self.p, self.r)])
+        gap = None
+        if bisect:
+            # how far apart the surfaces at the bracket's ends are (r = |q| - s): a bracket
+            # narrowed onto a surface has them together, one narrowed onto a silhouette keeps
+            # them apart
+            def reach(t):
+                return _norm([a + t * b for a, b in zip(hit_p, hit_r)])
 
-        gap = np.zeros(count, self.length.dtype)
-        gap[hits] = np.abs(reach(tb) - sb - (reach(ta) - sa))
+            gap = np.zeros(count, dtype)
+            gap[hits] = np.abs(reach(tb) - sb - (reach(ta) - sa))
         return found, t, t_b, gap
 
     def looks(self, found, t):
         """(unit look-up directions (n, 3), footprint ratios): towards the hit where the ray
         met a surface, along R where it escaped (ratio 1)."""
-        point = self.points(t)
+        hits = np.flatnonzero(found)
+        t = t[hits]
+        point = [a[hits] + t * b[hits] for a, b in zip(self.p, self.r)]
         reach = _norm(point)
         look = np.stack(self.r, axis=-1)
-        look[found] = np.stack([c[found] for c in point], axis=-1) / np.maximum(reach[found], 1e-30)[:, None]
+        look[hits] = np.stack(point, axis=-1) / np.maximum(reach, 1e-30)[:, None]
         ratio = np.ones(len(self.length), self.length.dtype)
-        ratio[found] = np.clip(t[found] / np.maximum(reach[found], 1e-6), 0.0, 1.0)
+        ratio[hits] = np.clip(t / np.maximum(reach, 1e-6), 0.0, 1.0)
         return look, ratio
