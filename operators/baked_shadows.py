@@ -66,10 +66,15 @@ def check_still(scene, objects):
         scene.frame_set(frame0)
 
 
+def world_box(objects):
+    """(low, high): the world-axis box around the objects' bounding boxes."""
+    corners = np.array([[ob.matrix_world @ _vec(c) for c in ob.bound_box] for ob in objects], dtype=np.float64)
+    return corners.reshape(-1, 3).min(axis=0), corners.reshape(-1, 3).max(axis=0)
+
+
 def panorama_centre(cg):
     """Above the CG's footprint centre, one bounding radius over its top."""
-    boxes = np.array([[ob.matrix_world @ _vec(c) for c in ob.bound_box] for ob in cg], dtype=np.float64)
-    low, high = boxes.reshape(-1, 3).min(axis=0), boxes.reshape(-1, 3).max(axis=0)
+    low, high = world_box(cg)
     radius = max(float(np.linalg.norm(high - low)) / 2, 1e-3)
     return np.array([(low[0] + high[0]) / 2, (low[1] + high[1]) / 2, high[2] + radius])
 
@@ -181,10 +186,12 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         for ob in phantoms:
             for slot in ob.material_slots:
                 state.set(slot, "material", grey)
+        # Only the rows that see a phantom: under a floor's CG about half the panorama
+        rows = engine.panorama_rows(centre, [world_box([ob]) for ob in phantoms], height)
         # with: the CG shadows and lights the phantoms but is not seen; without: gone
-        lit_with = renderer.render(centre, camera_hidden=cg, height=height, distance=True)
+        lit_with = renderer.render(centre, camera_hidden=cg, height=height, distance=True, rows=rows)
         distance, warnings = renderer.distance
-        lit_without = renderer.render(centre, hidden=cg, height=height)
+        lit_without = renderer.render(centre, hidden=cg, height=height, rows=rows)
     finally:
         errors = state.restore()
         renderer.end()

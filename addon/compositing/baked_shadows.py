@@ -30,6 +30,41 @@ RECORD_FILE = "shadow_ratio.json"
 DARK = 1e-6
 # The largest brightening a ratio may apply (as the compositor's Shadow Clamp).
 RATIO_CLAMP = 4.0
+# Rows rendered beyond the phantoms' elevations: the denoiser's context and the look-up's
+# bilinear neighbours at the band's edges.
+ROW_MARGIN = 24
+# A band this close to the whole panorama is rendered whole (the border would save nothing).
+WHOLE_BAND = 0.9
+
+
+def elevation_range(centre, low, high) -> tuple[float, float]:
+    """The lowest and highest elevation (radians) from ``centre`` of any point of the world box
+    [low, high]: elevation rises with height and, above the centre, falls with horizontal
+    distance (below it, rises), so the extremes lie at the box's top or bottom at its nearest or
+    farthest horizontal distance."""
+    centre, low, high = (np.asarray(v, dtype=np.float64) for v in (centre, low, high))
+    nearest = np.linalg.norm(np.clip(centre[:2], low[:2], high[:2]) - centre[:2])
+    farthest = np.linalg.norm(np.maximum(np.abs(low[:2] - centre[:2]), np.abs(high[:2] - centre[:2])))
+    top, bottom = high[2] - centre[2], low[2] - centre[2]
+    highest = math.atan2(top, nearest if top >= 0 else farthest)
+    lowest = math.atan2(bottom, farthest if bottom >= 0 else nearest)
+    return lowest, highest
+
+
+def panorama_rows(centre, boxes, height: int) -> tuple[int, int] | None:
+    """The band of rows (first, last + 1; the first row is the top) of a ``height``-row panorama
+    from ``centre`` that sees every point of ``boxes`` ((low, high) world boxes: the phantoms),
+    with ROW_MARGIN rows either side; None when that is (nearly) the whole panorama. The shadow
+    ratio is wanted on phantom points only, and a floor's lie below the centre: half the rows."""
+    if not boxes:
+        return None
+    ranges = [elevation_range(centre, low, high) for low, high in boxes]
+    lowest, highest = min(r[0] for r in ranges), max(r[1] for r in ranges)
+    first = max(0, math.floor((0.5 - highest / math.pi) * height) - ROW_MARGIN)
+    last = min(height, math.ceil((0.5 - lowest / math.pi) * height) + ROW_MARGIN)
+    if last - first >= WHOLE_BAND * height:
+        return None
+    return first, last
 
 
 def shadow_ratio(lit_with: np.ndarray, lit_without: np.ndarray) -> np.ndarray:

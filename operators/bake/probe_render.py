@@ -139,7 +139,7 @@ class ProbeRenderer:
                     state.set(ob, "is_holdout", False)
 
     def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=(),
-               behind=None):
+               behind=None, rows=None):
         """Render the panorama seen from ``origin`` (world space), ``height`` px high (default the
         scene's Probe Height), with ``hidden`` objects hidden
         and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
@@ -148,7 +148,9 @@ class ProbeRenderer:
         (``self.distance``: (map, warnings), distance_render.py); with ``behind`` (the object's
         reach from ``origin``) also the layer behind the first surface when the distance map
         shows a near occluder's edge (``self.behind``: (panorama, (map, warnings)), else None;
-        behind_render.py)."""
+        behind_render.py). ``rows`` (first, last + 1 of ``height``; the first row the top):
+        render only that band (a render border; the other rows come back black, the distance
+        map's as sky)."""
         if self.camera is None:            # set up on the first render: cache hits never need it
             self.begin()
         self.camera.location = tuple(float(x) for x in origin)
@@ -158,6 +160,13 @@ class ProbeRenderer:
         render = self.scene.render
         render.resolution_x, render.resolution_y = 2 * height, height   # begin() recorded the user's
         restore = []
+        if rows is not None:
+            first, last = rows
+            for attr, value in (("use_border", True), ("use_crop_to_border", False), ("border_min_x", 0.0),
+                                ("border_max_x", 1.0), ("border_min_y", 1.0 - last / height),
+                                ("border_max_y", 1.0 - first / height)):
+                restore.append((render, attr, getattr(render, attr)))
+                setattr(render, attr, value)
         try:
             for ob in hidden:
                 if not ob.hide_render:

@@ -70,6 +70,9 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
     assert expected[near].min() < 0.8                                # the shadow is in view
     error = np.abs(ratio[near] - expected[near])
     assert np.median(error) < 0.02 and np.percentile(error, 95) < 0.05, (np.median(error), np.percentile(error, 95))
+    # only the floor's rows were rendered: the sky's stay "no change" (ratio - 1 = 0) exactly
+    texture = read_exr(tmp_path / "maps" / "_shadows" / "shadow_ratio.exr", "RGB")
+    assert texture.shape == (128, 256, 3) and not texture[:32].any() and texture[64:].min() < -0.2
     # far away the plate is untouched
     far = visible & (np.linalg.norm(ground[..., :2], axis=-1) > 12.0)
     if far.any():
@@ -123,12 +126,14 @@ def test_bake_restores_the_scene_and_bad_input_is_one_sentence(bpy_clean, tmp_pa
 
     before = (scene.camera.name, scene.render.resolution_x, scene.render.resolution_y,
               scene.cycles.samples, scene.cycles.use_denoising, scene.render.filepath,
-              ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects))
+              ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects),
+              scene.render.use_border, scene.render.border_min_y, scene.render.border_max_y)
 
     assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
     after = (scene.camera.name, scene.render.resolution_x, scene.render.resolution_y,
              scene.cycles.samples, scene.cycles.use_denoising, scene.render.filepath,
-             ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects))
+             ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects),
+             scene.render.use_border, scene.render.border_min_y, scene.render.border_max_y)
     assert after == before
     assert (tmp_path / "maps" / "_shadows" / "shadow_ratio.exr").is_file()
     # a second run replaces the bake in place: one material, no duplicates

@@ -1,0 +1,56 @@
+"""The band of the shadow panorama that the bake renders (addon/compositing/baked_shadows.py):
+every point of every phantom box falls in it, and a floor's is about half the panorama."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from platelight.addon.compositing import baked_shadows as engine
+
+
+def point_rows(centre, points, height):
+    """The panorama row (first row the top) each point is seen in."""
+    offset = points - centre
+    elevation = np.arctan2(offset[:, 2], np.linalg.norm(offset[:, :2], axis=1))
+    return np.floor((0.5 - elevation / math.pi) * height).astype(int)
+
+
+def test_every_point_of_every_box_lies_in_the_band():
+    rng = np.random.default_rng(3)
+    height = 256
+    for _ in range(300):
+        centre = rng.uniform(-2, 2, 3)
+        boxes = []
+        for _ in range(rng.integers(1, 4)):
+            low = rng.uniform(-4, 4, 3)
+            boxes.append((low, low + rng.uniform(0.01, 3, 3)))
+        band = engine.panorama_rows(centre, boxes, height)
+        first, last = band if band is not None else (0, height)
+        for low, high in boxes:
+            points = rng.uniform(low, high, (400, 3))
+            # the faces too, where the extremes lie
+            for axis in range(3):
+                points[:50, axis] = low[axis]
+                points[50:100, axis] = high[axis]
+            rows = point_rows(centre, points, height)
+            assert rows.min() >= first and rows.max() < last, (centre, low, high, band, rows.min(), rows.max())
+
+
+def test_a_floor_under_the_centre_is_the_lower_half():
+    height = 512
+    first, last = engine.panorama_rows(np.array([0.0, 0.0, 1.9]),
+                                       [(np.array([-200.0, -200.0, 0.0]), np.array([200.0, 200.0, 0.0]))], height)
+    # its far corners, 283 m off, lie 0.4 degrees below the horizon: one row below the middle
+    assert last == height and first == height // 2 + 1 - engine.ROW_MARGIN
+    # a floor 3 m wide seen from 2 m above: the steep rows only
+    first, last = engine.panorama_rows(np.array([0.0, 0.0, 2.0]),
+                                       [(np.array([-1.5, -1.5, 0.0]), np.array([1.5, 1.5, 0.0]))], height)
+    steepest = math.atan2(-2.0, math.hypot(1.5, 1.5))
+    assert first == math.floor((0.5 - steepest / math.pi) * height) - engine.ROW_MARGIN and last == height
+
+
+def test_a_phantom_around_the_centre_renders_the_whole_panorama():
+    walls = [(np.array([-3.0, -3.0, 0.0]), np.array([3.0, 3.0, 4.0]))]
+    assert engine.panorama_rows(np.array([0.0, 0.0, 1.5]), walls, 256) is None
+    assert engine.panorama_rows(np.array([0.0, 0.0, 1.5]), [], 256) is None
