@@ -260,7 +260,7 @@ def refresh_probe_maps(scene=None):
     for obj in scene.objects:
         follow_probe(obj, scene, reload=False)
     count = 0
-    for tree in bpy.data.node_groups:
+    for tree in list(bpy.data.node_groups):           # a rebuild replaces the group
         if tree.bl_idname == "ShaderNodeTree" and probe_maps.FOLDER_KEY in tree:
             probe_maps.bind_images(tree)
             count += 1
