@@ -77,7 +77,7 @@ def render_distance(scene, view_layer, folder, clip_end, material=None):
         render.filepath = path
         height = distance_height(render.resolution_y)
         render.resolution_x, render.resolution_y = 2 * height, height
-        bpy.ops.render.render(write_still=True, layer=view_layer.name)
+        bpy.ops.render.render(write_still=True)      # the probe renderer left this layer alone enabled
     finally:
         for owner, attr, value in reversed(saved):
             setattr(owner, attr, value)

@@ -88,8 +88,15 @@ class ProbeRenderer:
         state.set(render, "use_sequencer", False)
         state.set(render, "use_persistent_data", True)      # scene sync once, not per probe
         state.set(render, "use_motion_blur", False)
-        # Only the active view layer: compositing setups add layers that hold things out.
-        state.set(render, "use_single_layer", True)
+        # Only the probe's view layer: compositing setups add layers that hold things out. The
+        # others are switched off rather than the render told to do one layer: a single-layer
+        # render keeps the other layers of the render before in its result when the size is
+        # unchanged, and the EXR took the first of them (the shadow bake's 256-row panorama came
+        # back as the 256-row distance map of the probe baked before it).
+        state.set(render, "use_single_layer", False)
+        for layer in scene.view_layers:
+            if layer != self.view_layer and layer.use:
+                state.set(layer, "use", False)
         # ...and enabled: Cycles ignores a disabled layer's material override, so the distance
         # map's render showed the surfaces' own shading (headless, the context's layer is the
         # first one, which setup_composite turns off).
@@ -198,7 +205,7 @@ class ProbeRenderer:
         """One render of the panorama as set up now: float32 (H, 2H, 3), the sky laid under."""
         global render_count
         try:
-            bpy.ops.render.render(write_still=True, layer=self.view_layer.name)
+            bpy.ops.render.render(write_still=True)
         except RuntimeError as exc:
             reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
             raise PlateLightError(f"Cycles could not render the probe at {tuple(round(float(x), 3) for x in origin)}: "

@@ -166,3 +166,29 @@ def test_cli_bake_bakes_the_shots_shadows_of_a_baked_composite(bpy_clean, tmp_pa
     again = support.run_cli("bake", tmp_path / "scene.blend")
     assert again.returncode == 0, again.stderr
     assert "up to date" in again.stdout
+
+
+def test_a_shadow_bake_after_a_probe_of_its_size_reads_its_own_render(bpy_clean, tmp_path, studio_hdris):
+    """The benchmark's diffuse ball: its probe (64 rows) has a 256-row distance map, and a 256-row
+    shadow bake right after it once wrote that map as its first panorama (the single-layer render
+    kept the probe's layer in its result): a ratio of 4 over the far floor, no shadow under the
+    ball. Its own render: no change far off, the contact shadow under the ball."""
+    import importlib.util
+
+    import support
+
+    bpy = bpy_clean
+    spec = importlib.util.spec_from_file_location(
+        "bench_composite_for_shadows", support.REPO / "tests" / "bench" / "bench_composite.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    bench.W, bench.H = 160, 90
+    scene, floor, sphere = bench.build(bpy, str(studio_hdris["city"]), bench.MATERIALS["diffuse"])
+    floor.platelight.phantom = True
+    bench.sbrdf_sphere(bpy, scene, sphere, tmp_path / "frame")
+    assert (tmp_path / "frame_probes" / sphere.name / "distance.exr").is_file()
+    assert scene.platelight.probe_height == 64
+    assert bpy.ops.platelight.bake_shadows(height=256, samples=4) == {"FINISHED"}
+    texture = read_exr(tmp_path / "frame_probes" / "_shadows" / "shadow_ratio.exr", "RGB")
+    assert np.abs(texture[136:176]).max() < 0.05           # the floor 2-6 m off (was 3: ratio 4)
+    assert texture[250:].mean() < -0.3                      # under the ball (measured -0.5)
