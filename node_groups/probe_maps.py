@@ -136,8 +136,9 @@ def _build_if_needed(tree, behind):
             for key in tree.keys():
                 if key not in (VERSION_KEY, BEHIND_KEY):
                     fresh[key] = tree[key]
-            name = tree.name
+            name, fake_user = tree.name, tree.use_fake_user
             tree.user_remap(fresh)
+            fresh.use_fake_user = fake_user
             bpy.data.node_groups.remove(tree)
             fresh.name = name
             return fresh
