@@ -55,15 +55,15 @@ def load(name: str):
         path = _path(name)
         if not os.path.isfile(path):
             return None
-        with bpy.data.libraries.load(path, link=False) as (source, target):
-            if name not in source.node_groups:
-                return None
-            target.node_groups = [name]
-        group = target.node_groups[0]
-        # Appending leaves the file behind as a library: drop it, or a saved .blend would name it
-        for library in [lib for lib in bpy.data.libraries
-                        if os.path.normpath(bpy.path.abspath(lib.filepath)) == os.path.normpath(path)]:
-            bpy.data.libraries.remove(library)
+        try:
+            with bpy.data.libraries.load(path, link=False) as (source, target):
+                target.node_groups = [name] if name in source.node_groups else []
+        finally:
+            # Reading the file leaves it behind as a library: drop it, or a saved .blend would name it
+            for library in [lib for lib in bpy.data.libraries
+                            if os.path.normpath(bpy.path.abspath(lib.filepath)) == os.path.normpath(path)]:
+                bpy.data.libraries.remove(library)
+        group = target.node_groups[0] if target.node_groups else None
         return group if group is not None and group.library is None and group.name == name else None
     except (OSError, RuntimeError, ValueError, ReferenceError):
         return None

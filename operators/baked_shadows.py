@@ -24,7 +24,7 @@ from ..addon.compositing import baked_shadows as engine
 from ..addon.errors import PlateLightError
 from ..addon.ibl import distance as distance_maps
 from ..node_groups.baked_shadow import baked_shadow_material
-from .bake.inputs import Describer, point_inside, world_description
+from .bake.inputs import Describer, point_inside, world_corners, world_description
 from .bake.probe_render import ProbeRenderer
 from .bake.scene_state import SceneState
 from .common import GEOMETRY_TYPES, classify_objects
@@ -68,8 +68,8 @@ def check_still(scene, objects):
 
 def world_box(objects):
     """(low, high): the world-axis box around the objects' bounding boxes."""
-    corners = np.array([[ob.matrix_world @ _vec(c) for c in ob.bound_box] for ob in objects], dtype=np.float64)
-    return corners.reshape(-1, 3).min(axis=0), corners.reshape(-1, 3).max(axis=0)
+    corners = np.concatenate([world_corners(ob) for ob in objects])
+    return corners.min(axis=0), corners.max(axis=0)
 
 
 def panorama_centre(cg):
@@ -89,12 +89,6 @@ def _matte_grey():
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     tree.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
     return material
-
-
-def _vec(c):
-    from mathutils import Vector
-
-    return Vector(c)
 
 
 def shadows_hash(scene, height, samples) -> str:

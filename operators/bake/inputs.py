@@ -176,9 +176,13 @@ def visible_in_probe(ob):
     return ob.type != "LIGHT" or ob.visible_camera
 
 
+def world_corners(ob) -> np.ndarray:
+    """The eight corners of the object's bounding box in world space, (8, 3)."""
+    return np.array([ob.matrix_world @ _vec(c) for c in ob.bound_box], dtype=np.float64)
+
+
 def world_bounds(ob):
-    corners = np.array([ob.matrix_world @ _vec(c) for c in ob.bound_box], dtype=np.float64)
-    return culling.bounding_sphere(corners)
+    return culling.bounding_sphere(world_corners(ob))
 
 
 def _vec(c):
