@@ -1,0 +1,101 @@
+"""Shadow bake settings (issue 11): what the baked route's shadow costs and how close it gets to the
+path-traced truth, per panorama height, samples and denoiser setting (docs/decisions.md, "The shadow
+bake renders only the rows that see a phantom").
+
+The composite benchmark's diffuse scene (bench_composite.py: its shot, its cached 512-spp truth;
+`make bench` runs that benchmark first), the baked route with 1 CG sample, the shadows baked with
+`bake_shadows(height, samples)` and the scene's Cycles denoiser settings, which the bake's renders
+keep. Bake seconds include the sphere's probe bake; *renders* are the shadow bake's Cycles renders
+(the panorama with the CG, the distance map, the panorama without it), timed by render_pre and
+render_post handlers. PSNR as in bench_composite (frame 24, peak the truth's 99.5th
+percentile). Timings on this 2-core machine vary by about 15 % between identical runs.
+
+Run: `PLATELIGHT_BENCH_SIZE=960x540 .venv/bin/python tests/bench/run_all.py --only shadow_bake`
+(about 10 minutes once the composite benchmark's truths are cached; longer without)."""
+from __future__ import annotations
+
+import os
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import bench_composite as bc  # noqa: E402
+
+SCENE = "diffuse"
+# (rows, samples, denoiser prefilter, input passes, quality): Cycles' defaults unless named
+SETTINGS = [(512, 1, None, None, None), (512, 4, None, None, None), (512, 8, None, None, None),
+            (512, 16, None, None, None), (512, 64, None, None, None), (1024, 16, None, None, None),
+            (512, 16, "FAST", None, None), (512, 16, None, "RGB", None), (512, 16, None, None, "BALANCED")]
+
+
+def main(out_dir: pathlib.Path) -> None:
+    bc.W, bc.H = (int(v) for v in bc.SIZE.split("x"))
+    bpy = bc.conftest._import_bpy_with_extension()
+    hdri = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{bc.HDRI}.exr")
+    material_name, box = bc.SHOT_SCENES[SCENE]
+    material = bc.MATERIALS[material_name]
+    truths, plates, plate_path = bc.shot_truths(bpy, hdri, SCENE, material, box, bc.CACHE / bc.SIZE)
+    bc.build(bpy, hdri, material, bc.shot_camera(bc.SHOT_FRAMES, box), None)
+    obj, shadow = bc.masks(truths[-1], plates[-1])
+    peak = float(np.percentile(truths[-1], 99.5))
+    renders = []
+
+    def started(*_):
+        renders.append(-time.perf_counter())
+
+    def finished(*_):
+        renders[-1] += time.perf_counter()
+
+    rows = []
+    for height, samples, prefilter, passes, quality in SETTINGS:
+        def bake(bpy_, route, height=height, samples=samples, prefilter=prefilter, passes=passes, quality=quality):
+            cycles = bpy_.context.scene.cycles
+            for attr, value in (("denoising_prefilter", prefilter), ("denoising_input_passes", passes),
+                                ("denoising_quality", quality)):
+                if value is not None:
+                    setattr(cycles, attr, value)
+            renders.clear()
+            bpy_.app.handlers.render_pre.append(started)
+            bpy_.app.handlers.render_post.append(finished)
+            t0 = time.perf_counter()
+            try:
+                assert bpy_.ops.platelight.bake_shadows(height=height, samples=samples) == {"FINISHED"}
+            finally:
+                bpy_.app.handlers.render_pre.remove(started)
+                bpy_.app.handlers.render_post.remove(finished)
+            return time.perf_counter() - t0
+
+        bc.bake_route_shadows = bake
+        tag = f"shadow_bake_{height}_{samples}_{prefilter or ''}{passes or ''}{quality or ''}"
+        images, bake_s, _setup_s, _seconds = bc.composite_shot(bpy, hdri, material, box, "sbrdf_baked", 1,
+                                                               plate_path, bc.CACHE / bc.SIZE / tag)
+        image = images[-1]
+        row = dict(height=height, samples=samples, denoiser=", ".join(
+            v for v in (prefilter and f"prefilter {prefilter.title()}", passes and f"input {passes}",
+                        quality and f"quality {quality.title()}") if v) or "Cycles' defaults",
+            bake_s=bake_s, renders=[round(r, 1) for r in renders],
+            shadow=bc.psnr(image, truths[-1], shadow, peak), object=bc.psnr(image, truths[-1], obj, peak))
+        rows.append(row)
+        print(row, flush=True)
+    write_report(out_dir, rows)
+
+
+def write_report(out_dir, rows):
+    stem = "shadow_bake" if bc.SIZE == "480x270" else f"shadow_bake_{bc.SIZE}"
+    lines = [f"# Shadow bake settings at {bc.SIZE.replace('x', '×')} (issue 11)", "",
+             " ".join(__doc__.split("\n\n")[1].split()), "",
+             f"Produced by `tests/bench/bench_shadow_bake.py`; load average when it finished: {os.getloadavg()[0]:.1f}.", "",
+             "| rows | spp | denoiser | bake (s) | renders (s) | PSNR shadow | PSNR object |",
+             "|---:|---:|---|---:|---|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['height']} | {r['samples']} | {r['denoiser']} | {r['bake_s']:.1f} | "
+                     f"{' / '.join(f'{v:.1f}' for v in r['renders'])} | {r['shadow']:.2f} | {r['object']:.2f} |")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / f"{stem}.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main(bc.support.REPO / "docs" / "bench")
