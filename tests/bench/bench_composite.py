@@ -11,7 +11,8 @@ Writes docs/bench/composite.md/.png (480x270) or composite_<W>x<H>.md/.png.
 Run: `make bench` (480x270), `make bench-960`, `make bench-1080`, `make bench-gpu` (Cycles on
 the GPU, EEVEE on a real GPU; only where one exists). Environment: PLATELIGHT_BENCH_SIZE=WxH,
 PLATELIGHT_BENCH_SCENES=diffuse,mirror (a subset), PLATELIGHT_BENCH_TRUTH_SPP,
-PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
+PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_GPU_BACKEND=CUDA (the backend; default the first of
+OptiX, CUDA, HIP, oneAPI, Metal with a device), PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
 PLATELIGHT_BENCH_EXTRA=layered,ggx (the layered route, the GGX glossy lobes), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
 subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
 2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_ROWS (the rows file's name beside the report; default <report>_rows.json,
@@ -396,7 +397,8 @@ def shot_truths(bpy, hdri_path, name, material, box, folder):
                 scene.cycles.blur_glossy = 0.0        # Filter Glossy 0: Cycles' 1.0 biases mirrors
                 set_device(scene)
                 sphere.hide_render = not with_sphere
-                render(bpy, scene, path)
+                _, took = render(bpy, scene, path)
+                print(f"{path.name}: {took:.1f} s", flush=True)     # a stalled run shows where
             if scored:
                 (truths if with_sphere else plates).append(read_exr(path))
     return truths, plates, plate_dir / "plate_0001.exr"
@@ -431,12 +433,15 @@ def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, ou
 
 
 DEVICE = os.environ.get("PLATELIGHT_BENCH_DEVICE", "CPU")
+# Tried in this order; PLATELIGHT_BENCH_GPU_BACKEND=CUDA picks one (on a GPU without RT cores,
+# or one Blender ships no binary kernel for, CUDA skips OptiX's own compile of its kernels).
+GPU_BACKENDS = tuple(b for b in os.environ.get("PLATELIGHT_BENCH_GPU_BACKEND", "OPTIX,CUDA,HIP,ONEAPI,METAL").split(",") if b)
 
 
 def use_gpu(bpy) -> str | None:
     """Switch Cycles to the first GPU backend with a device; its name, or None without one."""
     prefs = bpy.context.preferences.addons["cycles"].preferences
-    for backend in ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"):
+    for backend in GPU_BACKENDS:
         try:
             prefs.compute_device_type = backend
         except TypeError:
@@ -464,7 +469,8 @@ def main(out_dir: pathlib.Path) -> None:
     global W, H
     W, H = (int(v) for v in SIZE.split("x"))
     bpy = conftest._import_bpy_with_extension()
-    if DEVICE == "GPU" and use_gpu(bpy) is None:
+    backend = use_gpu(bpy) if DEVICE == "GPU" else "CPU"
+    if backend is None:
         raise SystemExit("make bench-gpu: Cycles finds no GPU on this machine (OptiX, CUDA, HIP, "
                          "oneAPI, Metal); run `make bench` for the CPU benchmark.")
     hdri_path = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{HDRI}.exr")
@@ -508,7 +514,7 @@ def main(out_dir: pathlib.Path) -> None:
                            psnr_shadow=pooled_psnr(images, truths, shadow_masks, peak),
                            psnr_all=pooled_psnr(images, truths, everything, peak),
                            object_px=int(obj_masks[0].sum()), shadow_px=int(shadow_masks[0].sum()),
-                           truth_spp=TRUTH_SAMPLES, load=os.getloadavg()[0])
+                           truth_spp=TRUTH_SAMPLES, load=os.getloadavg()[0], device=backend)
                 _put_row(rows, row)
                 print(row, flush=True)
                 rows_file.write_text(json.dumps(rows, indent=1))
