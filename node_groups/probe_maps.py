@@ -119,6 +119,13 @@ def _template(behind):
     return template
 
 
+def prepare_templates() -> None:
+    """Build (or load from this machine's cache) both templates now, e.g. before a timed shot:
+    otherwise the first bake after installing or updating the add-on pays their build inside it."""
+    _template(False)
+    _template(True)
+
+
 def _build_if_needed(tree, behind):
     """(Re)build the group's nodes when they are from another version or were built with(out)
     the layer behind's look-ups that the folder now has(n't): those cost a mirror's shading

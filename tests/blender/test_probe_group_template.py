@@ -89,3 +89,16 @@ def test_the_cache_is_named_by_the_sources(bpy_clean, tmp_path, monkeypatch):
     constants.write_text(constants.read_text().replace("BEHIND_JUMP = 0.2", "BEHIND_JUMP = 0.25"))
     monkeypatch.setattr(template_cache, "_digest", None)
     assert template_cache._path("x") != before
+
+
+def test_prepare_templates_leaves_both_templates_ready(bpy_clean):
+    """What a timed shot calls first (bench_composite.py): both templates in the file, unused,
+    and both on disk for the next session."""
+    bpy = bpy_clean
+    probe_maps, template_cache = _modules()
+    probe_maps.prepare_templates()
+    for name in (names.PROBE_GROUP_TEMPLATE, names.PROBE_GROUP_TEMPLATE + " Behind"):
+        template = bpy.data.node_groups[name]
+        assert template.users == 0 and len(template.nodes) > 2
+        assert bool(template.get(probe_maps.BEHIND_KEY)) == name.endswith("Behind")
+        assert os.path.isfile(template_cache._path(name))
