@@ -106,6 +106,9 @@ class ProbeRenderer:
         state.set(self.view_layer, "use", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
+        # Recorded first so put back last, once the user's format is back: a PNG's 8 bits set
+        # while the format is still EXR became 16 (the state restores in reverse order).
+        state.set(fmt, "color_depth", fmt.color_depth)
         for attr, value in compat.still_image_format():
             state.set(fmt, attr, value)
         state.set(fmt, "file_format", "OPEN_EXR")
