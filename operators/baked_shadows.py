@@ -195,7 +195,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
                 state.set(slot, "material", grey)
         # Only the rows that see a phantom: under a floor's CG about half the panorama
         rows = engine.panorama_rows(centre, [world_box([ob]) for ob in phantoms], height)
-        # with: the CG shadows and lights the phantoms but is not seen; without: gone
+        # The CG shadows and lights the phantoms but is not seen; the catchers' paths also go on
+        # without it (CATCHER), or a second render does (TWO_RENDERS)
         if method == "CATCHER":
             caught = renderer.render(centre, camera_hidden=cg, catchers=phantoms, height=height, distance=True,
                                      rows=rows)
