@@ -14,8 +14,9 @@ What differs (README, "Supported Blender versions"):
   inputs are named Background/Foreground on 5.x and are the 2nd/3rd "Image" on 4.5.
 - File Output node: ``directory`` / ``file_output_items`` on 5.x, ``base_path`` / ``file_slots``
   on 4.5.
-- ``ImageFormatSettings.media_type`` exists only on 5.x; a File Output node's still-frame files
-  carry the frame number on 4.5 only.
+- ``ImageFormatSettings.media_type`` exists only on 5.x (a multilayer EXR is its media type
+  there, a file format on 4.5); a File Output node's still-frame files carry the frame number on
+  4.5 only.
 - EEVEE's engine identifier: BLENDER_EEVEE_NEXT on 4.5, BLENDER_EEVEE on 5.x.
 - 4.5's bpy can deadlock at process exit (exit_process).
 """
@@ -72,6 +73,14 @@ def new_world(name):
 def still_image_format():
     """(attribute, value) pairs that make an ImageFormatSettings write a still image."""
     return [] if BLENDER_4 else [("media_type", "IMAGE")]
+
+
+def multilayer_exr_format():
+    """(attribute, value) pairs, in order, that make an ImageFormatSettings write a multilayer
+    EXR (every pass of the render, not only Combined)."""
+    if BLENDER_4:
+        return [("file_format", "OPEN_EXR_MULTILAYER")]
+    return [("media_type", "MULTI_LAYER_IMAGE"), ("file_format", "OPEN_EXR_MULTILAYER")]
 
 
 def set_still_image(fmt):

@@ -17,8 +17,10 @@ from .fileio import atomic_path, read_magic
 EXR_MAGIC = b"\x76\x2f\x31\x01"
 
 
-def read_exr(path: str | os.PathLike, channels: str = "RGB") -> np.ndarray:
-    """Read an EXR as float32 (H, W, len(channels)). ``channels`` is "RGB" or "RGBA".
+def read_exr(path: str | os.PathLike, channels: str = "RGB", layer: str | None = None) -> np.ndarray:
+    """Read an EXR as float32 (H, W, len(channels)). ``channels`` is "RGB" or "RGBA"; ``layer``:
+    the layer whose last name is this (a multilayer render's pass, "Shadow Catcher"), else the
+    picture's.
 
     A grey (Y-only) image is broadcast to RGB; a missing alpha reads as 1."""
     import OpenEXR
@@ -31,10 +33,11 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB") -> np.ndarray:
         parts = [{name: ch.pixels for name, ch in part.channels.items()} for part in exr.parts]
     except Exception as exc:  # the library raises RuntimeError / ValueError for truncated data
         raise PlateLightError(f"Cannot read EXR (truncated or corrupt): {path} ({exc})") from None
-    planes = _choose_layer(parts)
+    planes = _choose_layer(parts, layer)
     if planes is None:
         found = sorted({n for part in parts for n in part})
-        raise PlateLightError(f"EXR has no R, G, B or Y channels (found {', '.join(found[:12])}): {path}")
+        wanted = f"a {layer} layer" if layer else "R, G, B or Y channels"
+        raise PlateLightError(f"EXR has no {wanted} (found {', '.join(found[:12])}): {path}")
     if all(k in planes for k in "RGB"):
         rgb = [planes["R"], planes["G"], planes["B"]]
     else:
@@ -54,10 +57,11 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB") -> np.ndarray:
 PICTURE_LAYERS = ("", "rgba", "rgb", "combined", "beauty", "image", "color", "colour")
 
 
-def _choose_layer(parts: list[dict]) -> dict | None:
+def _choose_layer(parts: list[dict], wanted: str | None = None) -> dict | None:
     """The channels {"R": plane, ...} of the layer that holds the picture: the unnamed layer,
     else a Combined/beauty/RGBA-like one (Blender's "ViewLayer.Combined.R"), else the first
-    layer with R, G, B or Y, over all parts of a multi-part file."""
+    layer with R, G, B or Y, over all parts of a multi-part file. ``wanted``: only a layer whose
+    last name is that (case-insensitive)."""
     layers: dict[str, dict] = {}
     for part in parts:
         for name, pixels in part.items():
@@ -66,6 +70,8 @@ def _choose_layer(parts: list[dict]) -> dict | None:
             if channel in ("R", "G", "B", "A", "Y"):
                 layers.setdefault(layer, {}).setdefault(channel, pixels)
     usable = {k: v for k, v in layers.items() if all(c in v for c in "RGB") or "Y" in v}
+    if wanted is not None:
+        usable = {k: v for k, v in usable.items() if k.rpartition(".")[2].lower() == wanted.lower()}
     if not usable:
         return None
 

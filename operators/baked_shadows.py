@@ -1,11 +1,15 @@
 """bpy.ops.platelight.bake_shadows(): the shot's shadow panorama for setup_composite's BAKED method
 (addon/compositing/baked_shadows.py says why a matte phantom's shadow can be baked once).
 
-Two renders from one point above the CG (the probe renderer's equirectangular camera, denoised,
-one seed): with the CG there but unseen by camera rays (it still shadows and lights the
-phantoms), and without it. Their ratio is what Cycles' catcher pass holds for each point the
-panorama sees; a distance panorama tells those points from hidden ones. The scene is restored
-exactly, as after a probe bake."""
+From one point above the CG (the probe renderer's equirectangular camera, denoised, one seed),
+with the CG there but unseen by camera rays (it still shadows and lights the phantoms), the
+ratio of the light each phantom point the panorama sees gets with the CG to the light without
+it. CATCHER (the default) renders it in one render: the phantoms are Cycles shadow catchers,
+which split each path at the phantom into one that sees the CG and one that does not, and the
+Shadow Catcher pass is their ratio, denoised by OIDN as such. TWO_RENDERS renders the light with
+the CG and without it and divides; undenoised the two give the same ratio to the bit (same
+seed, same paths). A distance panorama tells the points seen from hidden ones. The scene is
+restored exactly, as after a probe bake."""
 from __future__ import annotations
 
 import os
@@ -13,7 +17,7 @@ import time
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, IntProperty
+from bpy.props import BoolProperty, EnumProperty, IntProperty
 
 from .. import compat
 from ..addon import names
@@ -91,7 +95,7 @@ def _matte_grey():
     return material
 
 
-def shadows_hash(scene, height, samples) -> str:
+def shadows_hash(scene, height, samples, method) -> str:
     """The content hash of what the shadow panorama depends on: the world, every renderable
     object (place, shape, materials, visibility), the bake's settings and Cycles' bounces. A
     phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
@@ -110,7 +114,7 @@ def shadows_hash(scene, height, samples) -> str:
                   if not ob.hide_render and (ob.type in GEOMETRY_TYPES or ob.type == "LIGHT"))
     cycles = scene.cycles
     return content_hash({"world": content_hash(world_description(scene)), "seen": seen,
-                         "settings": [int(height), int(samples)],
+                         "settings": [int(height), int(samples), str(method)],
                          "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
                                     cycles.transmission_bounces]})
 
@@ -123,17 +127,23 @@ def baked_is_current(scene) -> bool | None:
         return None
     if record is None:
         return None
-    return record.get("hash") == shadows_hash(scene, record.get("height", 0), record.get("samples", 0))
+    return record.get("hash") == shadows_hash(scene, record.get("height", 0), record.get("samples", 0),
+                                              record.get("method", ""))
 
 
 DEFAULT_HEIGHT, DEFAULT_SAMPLES = 512, 16
+METHODS = (("CATCHER", "Shadow Catcher", "One render of Cycles' Shadow Catcher pass: the ratio per path, "
+            "denoised as such"),
+           ("TWO_RENDERS", "Two Renders", "The light with the CG and without it, each denoised, divided"))
+DEFAULT_METHOD = "CATCHER"
 
 
 def bake_shadows(context, height: int | None = None, samples: int | None = None,
-                 use_cache: bool = True) -> dict:
+                 use_cache: bool = True, method: str | None = None) -> dict:
     """Bake the shot's shadow panorama and (re)build the override material; returns a summary
-    (``reused``: the bake on disk was current and nothing was rendered). ``height``/``samples``
-    None: those of the bake on disk (a farm's re-bake keeps the artist's), else the defaults."""
+    (``reused``: the bake on disk was current and nothing was rendered). ``height``/``samples``/
+    ``method`` (METHODS) None: those of the bake on disk (a farm's re-bake keeps the artist's),
+    else the defaults."""
     scene = context.scene
     if scene.world is None:
         raise PlateLightError("The scene has no world; add one (its environment lights the phantoms) "
@@ -150,7 +160,10 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     record = engine.read_record(folder)
     height = int(height or (record or {}).get("height") or DEFAULT_HEIGHT)
     samples = int(samples or (record or {}).get("samples") or DEFAULT_SAMPLES)
-    digest = shadows_hash(scene, height, samples)
+    method = method or (record or {}).get("method") or DEFAULT_METHOD
+    if method not in {m[0] for m in METHODS}:
+        raise PlateLightError(f"Unknown shadow bake method {method!r}: one of {', '.join(m[0] for m in METHODS)}.")
+    digest = shadows_hash(scene, height, samples, method)
     if use_cache and record is not None and record.get("hash") == digest and \
             bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) is not None and \
             os.path.isfile(os.path.join(folder, engine.RATIO_FILE)):
@@ -182,18 +195,26 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
                 state.set(slot, "material", grey)
         # Only the rows that see a phantom: under a floor's CG about half the panorama
         rows = engine.panorama_rows(centre, [world_box([ob]) for ob in phantoms], height)
-        # with: the CG shadows and lights the phantoms but is not seen; without: gone
-        lit_with = renderer.render(centre, camera_hidden=cg, height=height, distance=True, rows=rows)
+        # The CG shadows and lights the phantoms but is not seen; the catchers' paths also go on
+        # without it (CATCHER), or a second render does (TWO_RENDERS)
+        if method == "CATCHER":
+            caught = renderer.render(centre, camera_hidden=cg, catchers=phantoms, height=height, distance=True,
+                                     rows=rows)
+        else:
+            lit_with = renderer.render(centre, camera_hidden=cg, height=height, distance=True, rows=rows)
         distance, warnings = renderer.distance
-        lit_without = renderer.render(centre, hidden=cg, height=height, rows=rows)
+        if method == "TWO_RENDERS":
+            lit_without = renderer.render(centre, hidden=cg, height=height, rows=rows)
     finally:
         errors = state.restore()
         renderer.end()
         bpy.data.materials.remove(grey)
         scene.view_layers.remove(layer)
-    ratio = engine.shadow_ratio(lit_with, lit_without)
+    ratio = (engine.catcher_ratio(caught, rows) if method == "CATCHER"
+             else engine.shadow_ratio(lit_with, lit_without))
     distance_path = distance_maps.write_distance(folder, distance)
-    ratio_path = engine.write_baked(folder, engine.ratio_to_texture(ratio), centre, height, samples, digest)
+    ratio_path = engine.write_baked(folder, engine.ratio_to_texture(ratio), centre, height, samples, digest,
+                                    method)
     baked_shadow_material(ratio_path, distance_path, centre)
     return {"seconds": time.perf_counter() - t0, "folder": folder, "centre": centre,
             "warnings": list(warnings) + list(errors or []), "reused": False}
@@ -211,8 +232,10 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
                         default=False)
     height: IntProperty(name="Resolution", description="Height of the shadow panorama in pixels "
                         "(width twice)", default=DEFAULT_HEIGHT, min=16, max=8192)
-    samples: IntProperty(name="Samples", description="Cycles samples of each of the two renders "
-                         "(denoised)", default=DEFAULT_SAMPLES, min=1, max=65536)
+    samples: IntProperty(name="Samples", description="Cycles samples of each render (denoised)",
+                         default=DEFAULT_SAMPLES, min=1, max=65536)
+    method: EnumProperty(name="Method", description="How the ratio of the light with the CG to the "
+                         "light without it is rendered", items=METHODS, default=DEFAULT_METHOD)
 
     @classmethod
     def poll(cls, context):
@@ -223,7 +246,8 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            summary = bake_shadows(context, self.height, self.samples, use_cache=not self.force)
+            summary = bake_shadows(context, self.height, self.samples, use_cache=not self.force,
+                                   method=self.method)
         except PlateLightError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -54,3 +54,16 @@ def test_a_phantom_around_the_centre_renders_the_whole_panorama():
     walls = [(np.array([-3.0, -3.0, 0.0]), np.array([3.0, 3.0, 4.0]))]
     assert engine.panorama_rows(np.array([0.0, 0.0, 1.5]), walls, 256) is None
     assert engine.panorama_rows(np.array([0.0, 0.0, 1.5]), [], 256) is None
+
+
+def test_the_catcher_pass_becomes_the_ratio_only_where_a_catcher_was_seen():
+    """catcher_ratio: the Shadow Catcher pass where the Combined alpha says catcher (0), 1 over
+    the sky (1; the denoised pass there is 1 smoothed), blended at the horizon, 1 outside the
+    rendered rows (black there), clamped as the two renders' ratio."""
+    caught = np.zeros((8, 4, 4), np.float32)
+    caught[2:6, :, :3] = [[0.5], [0.99], [6.0], [0.5]]              # shadow, sky, a clamped bounce, horizon
+    caught[2:6, 1, 3], caught[2:6, 3, 3] = 1.0, 0.5
+    ratio = engine.catcher_ratio(caught, (2, 6))
+    assert (ratio[:2] == 1).all() and (ratio[6:] == 1).all()
+    assert np.allclose(ratio[2:6, :, 0], [0.5, 1.0, engine.RATIO_CLAMP, 0.75])
+    assert (ratio[2:6, 1] == 1).all()

@@ -77,20 +77,37 @@ def shadow_ratio(lit_with: np.ndarray, lit_without: np.ndarray) -> np.ndarray:
     return np.clip(ratio, 0.0, RATIO_CLAMP)
 
 
+def catcher_ratio(caught: np.ndarray, rows: tuple[int, int] | None = None) -> np.ndarray:
+    """The ratio from Cycles' Shadow Catcher pass ``caught`` (H, W, 4; alpha the Combined pass's:
+    0 where a catcher is seen, 1 where the sky is): blended to 1 over the sky (the denoised pass
+    there is 1 smoothed, not 1), 1 outside the rendered ``rows`` (black there), clamped as
+    shadow_ratio."""
+    caught = np.asarray(caught, dtype=np.float64)
+    sky = np.clip(caught[..., 3:], 0.0, 1.0)
+    ratio = sky + (1.0 - sky) * caught[..., :3]
+    ratio[~np.isfinite(ratio)] = 1.0
+    if rows is not None:
+        ratio[:rows[0]] = 1.0
+        ratio[rows[1]:] = 1.0
+    return np.clip(ratio, 0.0, RATIO_CLAMP)
+
+
 def ratio_to_texture(ratio: np.ndarray) -> np.ndarray:
     """What the override material reads: ratio − 1, so a texel that reads 0 means "no change"."""
     return np.ascontiguousarray(np.asarray(ratio, dtype=np.float32)[..., :3] - 1.0)
 
 
-def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: int, digest: str = "") -> str:
-    """Write the ratio texture and its record (the panorama's centre, the inputs' hash) into
-    ``folder``; the record last, so a bake stopped halfway is never taken as current."""
+def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: int, digest: str = "",
+                method: str = "") -> str:
+    """Write the ratio texture and its record (the panorama's centre, the bake's settings, the
+    inputs' hash) into ``folder``; the record last, so a bake stopped halfway is never taken as
+    current."""
     os.makedirs(folder, exist_ok=True)
     path = os.path.join(folder, RATIO_FILE)
     write_exr(path, texture)
     write_json_atomic(os.path.join(folder, RECORD_FILE),
                       {"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples),
-                       "hash": digest})
+                       "method": method, "hash": digest})
     return path
 
 

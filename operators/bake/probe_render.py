@@ -9,6 +9,7 @@ import shutil
 import tempfile
 
 import bpy
+import numpy as np
 
 from ... import compat
 from ...addon import names
@@ -24,6 +25,8 @@ from . import behind_render, distance_render
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
+# The multilayer EXR's layer (pass) that holds Cycles' shadow catcher ratio.
+SHADOW_CATCHER_PASS = "Shadow Catcher"
 # Cycles builds the world's light-importance map at each render session. Capping it at 256
 # columns (scene.platelight.probe_fast_world) makes a 128x64 probe about 3x faster, but under a
 # small bright sun (the city HDRI) it leaves fireflies on sunlit surfaces and their median 22 %
@@ -103,6 +106,9 @@ class ProbeRenderer:
         state.set(self.view_layer, "use", True)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
+        # Recorded first so put back last, once the user's format is back: a PNG's 8 bits set
+        # while the format is still EXR became 16 (the state restores in reverse order).
+        state.set(fmt, "color_depth", fmt.color_depth)
         for attr, value in compat.still_image_format():
             state.set(fmt, attr, value)
         state.set(fmt, "file_format", "OPEN_EXR")
@@ -146,7 +152,7 @@ class ProbeRenderer:
                     state.set(ob, "is_holdout", False)
 
     def render(self, origin, hidden=(), shadow_only=(), distance=False, height=None, camera_hidden=(),
-               behind=None, rows=None):
+               behind=None, rows=None, catchers=()):
         """Render the panorama seen from ``origin`` (world space), ``height`` px high (default the
         scene's Probe Height), with ``hidden`` objects hidden
         and ``shadow_only`` objects invisible to every ray but shadow rays (an owner that still
@@ -157,7 +163,10 @@ class ProbeRenderer:
         shows a near occluder's edge (``self.behind``: (panorama, (map, warnings)), else None;
         behind_render.py). ``rows`` (first, last + 1 of ``height``; the first row the top):
         render only that band (a render border; the other rows come back black, the distance
-        map's as sky)."""
+        map's as sky). ``catchers``: objects rendered as Cycles shadow catchers, and what comes
+        back is their Shadow Catcher pass (H, 2H, 4): per texel the light with the other objects
+        over the light without them, alpha the Combined pass's (0 where a catcher is seen, 1 the
+        sky)."""
         if self.camera is None:            # set up on the first render: cache hits never need it
             self.begin()
         self.camera.location = tuple(float(x) for x in origin)
@@ -185,7 +194,12 @@ class ProbeRenderer:
                     if getattr(ob, flag):
                         restore.append((ob, flag, True))
                         setattr(ob, flag, False)
-            env = self._render_panorama(origin, height)
+            caught = self._set(self._catcher_settings(catchers)) if catchers else []
+            try:
+                env = self._render_panorama(origin, height, catcher=bool(catchers))
+            finally:                         # before the distance map: it must see the catchers
+                for owner, attr, value in caught:
+                    setattr(owner, attr, value)
             self.distance = (distance_render.render_distance(self.scene, self.view_layer, self._tmpdir,
                                                              self.camera.data.clip_end)
                              if distance else None)
@@ -201,8 +215,29 @@ class ProbeRenderer:
                 setattr(ob, flag, value)
         return env
 
-    def _render_panorama(self, origin, height):
-        """One render of the panorama as set up now: float32 (H, 2H, 3), the sky laid under."""
+    def _catcher_settings(self, catchers):
+        """(owner, attribute, value) that render ``catchers`` as shadow catchers into a multilayer
+        EXR with their pass. The sky is rendered, not transparent: a catcher is transparent in the
+        Combined pass, so only an opaque sky tells the two apart there."""
+        fmt = self.scene.render.image_settings
+        return ([(ob, "is_shadow_catcher", True) for ob in catchers] +
+                [(self.view_layer.cycles, "use_pass_shadow_catcher", True),
+                 (self.scene.render, "film_transparent", False)] +
+                [(fmt, attr, value) for attr, value in compat.multilayer_exr_format()] +
+                [(fmt, "color_mode", "RGBA"), (fmt, "color_depth", "32")])
+
+    @staticmethod
+    def _set(settings):
+        """Apply (owner, attribute, value) in order; the old values, in the order to put them back
+        (the same: a 5.x file format is only valid after its media type)."""
+        old = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in settings]
+        for owner, attr, value in settings:
+            setattr(owner, attr, value)
+        return old
+
+    def _render_panorama(self, origin, height, catcher=False):
+        """One render of the panorama as set up now: float32 (H, 2H, 3), the sky laid under; with
+        ``catcher`` the Shadow Catcher pass and the Combined pass's alpha (H, 2H, 4)."""
         global render_count
         try:
             bpy.ops.render.render(write_still=True)
@@ -211,6 +246,10 @@ class ProbeRenderer:
             raise PlateLightError(f"Cycles could not render the probe at {tuple(round(float(x), 3) for x in origin)}: "
                                   f"{reason}") from None
         render_count += 1
+        if catcher:
+            path = self.scene.render.filepath
+            alpha = read_exr(path, "RGBA")[..., 3:]
+            return np.concatenate([read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS), alpha], axis=-1)
         if self._world is None:
             return read_exr(self.scene.render.filepath, "RGB")
         rgba = read_exr(self.scene.render.filepath, "RGBA")

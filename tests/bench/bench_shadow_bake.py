@@ -1,13 +1,15 @@
 """Shadow bake settings (issue 11): what the baked route's shadow costs and how close it gets to the
-path-traced truth, per panorama height, samples and denoiser setting (docs/decisions.md, "The shadow
+path-traced truth, per method, panorama height, samples and denoiser setting (docs/decisions.md, "The shadow
 bake renders only the rows that see a phantom").
 
 The composite benchmark's diffuse scene (bench_composite.py: its shot, its cached 512-spp truth;
 `make bench` runs that benchmark first), the baked route with 1 CG sample, the shadows baked with
-`bake_shadows(height, samples)` and the scene's Cycles denoiser settings, which the bake's renders
-keep. Bake seconds include the sphere's probe bake; *renders* are the shadow bake's Cycles renders
-(the panorama with the CG, the distance map, the panorama without it), timed by render_pre and
-render_post handlers. PSNR as in bench_composite (frame 24, peak the truth's 99.5th
+`bake_shadows(height, samples, method)` and the scene's Cycles denoiser settings, which the bake's
+renders keep. Methods: *two renders* (the panorama with the CG, the distance map, the panorama
+without it; the ratio divided in numpy) and *catcher* (one render of the Shadow Catcher pass with
+the phantoms as catchers, then the distance map). Bake seconds include the sphere's probe bake;
+*renders* are the shadow bake's Cycles renders in that order, timed by render_pre and render_post
+handlers. PSNR as in bench_composite (frame 24, peak the truth's 99.5th
 percentile). Timings on this 2-core machine vary by about 15 % between identical runs.
 
 Run: `PLATELIGHT_BENCH_SIZE=960x540 .venv/bin/python tests/bench/run_all.py --only shadow_bake`
@@ -25,10 +27,14 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import bench_composite as bc  # noqa: E402
 
 SCENE = "diffuse"
-# (rows, samples, denoiser prefilter, input passes, quality): Cycles' defaults unless named
-SETTINGS = [(512, 1, None, None, None), (512, 4, None, None, None), (512, 8, None, None, None),
-            (512, 16, None, None, None), (512, 64, None, None, None), (1024, 16, None, None, None),
-            (512, 16, "FAST", None, None), (512, 16, None, "RGB", None), (512, 16, None, None, "BALANCED")]
+# (method, rows, samples, denoiser prefilter, input passes, quality): Cycles' defaults unless named
+SETTINGS = [(method, height, samples, None, None, None)
+            for height, samples in ((512, 1), (512, 4), (512, 8), (512, 16), (512, 64), (1024, 16))
+            for method in ("TWO_RENDERS", "CATCHER")] + \
+           [("TWO_RENDERS", 512, 16, "FAST", None, None), ("TWO_RENDERS", 512, 16, None, "RGB", None),
+            ("TWO_RENDERS", 512, 16, None, None, "BALANCED")]
+# PLATELIGHT_BENCH_SHADOW_ROWS="CATCHER:512:16,TWO_RENDERS:512:16": only those rows (default settings)
+ONLY = {tuple(v.split(":")) for v in os.environ.get("PLATELIGHT_BENCH_SHADOW_ROWS", "").split(",") if v}
 
 
 def main(out_dir: pathlib.Path) -> None:
@@ -50,8 +56,12 @@ def main(out_dir: pathlib.Path) -> None:
         renders[-1] += time.perf_counter()
 
     rows = []
-    for height, samples, prefilter, passes, quality in SETTINGS:
-        def bake(bpy_, route, height=height, samples=samples, prefilter=prefilter, passes=passes, quality=quality):
+    for method, height, samples, prefilter, passes, quality in SETTINGS:
+        if ONLY and ((method, str(height), str(samples)) not in ONLY or prefilter or passes or quality):
+            continue
+
+        def bake(bpy_, route, method=method, height=height, samples=samples, prefilter=prefilter, passes=passes,
+                 quality=quality):
             cycles = bpy_.context.scene.cycles
             for attr, value in (("denoising_prefilter", prefilter), ("denoising_input_passes", passes),
                                 ("denoising_quality", quality)):
@@ -62,18 +72,18 @@ def main(out_dir: pathlib.Path) -> None:
             bpy_.app.handlers.render_post.append(finished)
             t0 = time.perf_counter()
             try:
-                assert bpy_.ops.platelight.bake_shadows(height=height, samples=samples) == {"FINISHED"}
+                assert bpy_.ops.platelight.bake_shadows(height=height, samples=samples, method=method) == {"FINISHED"}
             finally:
                 bpy_.app.handlers.render_pre.remove(started)
                 bpy_.app.handlers.render_post.remove(finished)
             return time.perf_counter() - t0
 
         bc.bake_route_shadows = bake
-        tag = f"shadow_bake_{height}_{samples}_{prefilter or ''}{passes or ''}{quality or ''}"
+        tag = f"shadow_bake_{method.lower()}_{height}_{samples}_{prefilter or ''}{passes or ''}{quality or ''}"
         images, bake_s, _setup_s, _seconds = bc.composite_shot(bpy, hdri, material, box, "sbrdf_baked", 1,
                                                                plate_path, bc.CACHE / bc.SIZE / tag)
         image = images[-1]
-        row = dict(height=height, samples=samples, denoiser=", ".join(
+        row = dict(method=method, height=height, samples=samples, denoiser=", ".join(
             v for v in (prefilter and f"prefilter {prefilter.title()}", passes and f"input {passes}",
                         quality and f"quality {quality.title()}") if v) or "Cycles' defaults",
             bake_s=bake_s, renders=[round(r, 1) for r in renders],
@@ -88,10 +98,11 @@ def write_report(out_dir, rows):
     lines = [f"# Shadow bake settings at {bc.SIZE.replace('x', '×')} (issue 11)", "",
              " ".join(__doc__.split("\n\n")[1].split()), "",
              f"Produced by `tests/bench/bench_shadow_bake.py`; load average when it finished: {os.getloadavg()[0]:.1f}.", "",
-             "| rows | spp | denoiser | bake (s) | renders (s) | PSNR shadow | PSNR object |",
-             "|---:|---:|---|---:|---|---:|---:|"]
+             "| method | rows | spp | denoiser | bake (s) | renders (s) | PSNR shadow | PSNR object |",
+             "|---|---:|---:|---|---:|---|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r['height']} | {r['samples']} | {r['denoiser']} | {r['bake_s']:.1f} | "
+        method = {"TWO_RENDERS": "two renders", "CATCHER": "catcher"}[r["method"]]
+        lines.append(f"| {method} | {r['height']} | {r['samples']} | {r['denoiser']} | {r['bake_s']:.1f} | "
                      f"{' / '.join(f'{v:.1f}' for v in r['renders'])} | {r['shadow']:.2f} | {r['object']:.2f} |")
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / f"{stem}.md").write_text("\n".join(lines) + "\n")
