@@ -20,7 +20,7 @@ from ...addon.ibl.distance import near_silhouette
 from ...addon.ibl.equirect import downsample_area
 from ..common import addon_preferences
 from ..world_environment import world_image
-from . import behind_render, distance_render
+from . import behind_render, distance_render, pass_denoise
 
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
@@ -48,9 +48,13 @@ class ProbeRenderer:
     cache hits never touches the render settings), ``end()`` removes the camera, the render
     results and the temporary folder (the bake restores the recorded settings before)."""
 
-    def __init__(self, context, state, world_map_resolution, denoise=False, samples=None, view_layer=None):
+    def __init__(self, context, state, world_map_resolution, denoise=False, samples=None, view_layer=None,
+                 catcher_denoiser="CYCLES"):
         self.context = context
         self.denoise = denoise               # OpenImageDenoise on the panorama (baked shadows)
+        # Who denoises a catcher render's pass: CYCLES (with Combined and the matte) or the
+        # COMPOSITOR's Denoise node (that pass alone, pass_denoise.py)
+        self.catcher_denoiser = catcher_denoiser
         self.samples = samples               # None: the scene's Probe Samples
         self.scene = context.scene
         self.view_layer = view_layer or context.view_layer     # the layer rendered
@@ -220,7 +224,11 @@ class ProbeRenderer:
         EXR with their pass. The sky is rendered, not transparent: a catcher is transparent in the
         Combined pass, so only an opaque sky tells the two apart there."""
         fmt = self.scene.render.image_settings
-        return ([(ob, "is_shadow_catcher", True) for ob in catchers] +
+        by_compositor = []
+        if self.denoise and self.catcher_denoiser == "COMPOSITOR":
+            by_compositor = [(self.scene.cycles, "use_denoising", False),
+                             (self.view_layer.cycles, "denoising_store_passes", True)]
+        return by_compositor + ([(ob, "is_shadow_catcher", True) for ob in catchers] +
                 [(self.view_layer.cycles, "use_pass_shadow_catcher", True),
                  (self.scene.render, "film_transparent", False)] +
                 [(fmt, attr, value) for attr, value in compat.multilayer_exr_format()] +
@@ -249,7 +257,13 @@ class ProbeRenderer:
         if catcher:
             path = self.scene.render.filepath
             alpha = read_exr(path, "RGBA")[..., 3:]
-            return np.concatenate([read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS), alpha], axis=-1)
+            if self.denoise and self.catcher_denoiser == "COMPOSITOR":
+                caught = pass_denoise.denoise_pass(path, self.view_layer.name, SHADOW_CATCHER_PASS,
+                                                   (2 * height, height), self.scene.cycles,
+                                                   os.path.join(self._tmpdir, "denoised.exr"))
+            else:
+                caught = read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS)
+            return np.concatenate([caught, alpha], axis=-1)
         if self._world is None:
             return read_exr(self.scene.render.filepath, "RGB")
         rgba = read_exr(self.scene.render.filepath, "RGBA")
