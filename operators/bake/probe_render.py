@@ -27,6 +27,7 @@ PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
 # The multilayer EXR's layer (pass) that holds Cycles' shadow catcher ratio.
 SHADOW_CATCHER_PASS = "Shadow Catcher"
+DENOISING_NORMAL_PASS = "Denoising Normal"
 # Cycles builds the world's light-importance map at each render session. Capping it at 256
 # columns (scene.platelight.probe_fast_world) makes a 128x64 probe about 3x faster, but under a
 # small bright sun (the city HDRI) it leaves fireflies on sunlit surfaces and their median 22 %
@@ -200,7 +201,7 @@ class ProbeRenderer:
                         setattr(ob, flag, False)
             caught = self._set(self._catcher_settings(catchers)) if catchers else []
             try:
-                env = self._render_panorama(origin, height, catcher=bool(catchers))
+                env = self._render_panorama(origin, height, catcher=bool(catchers), rows=rows)
             finally:                         # before the distance map: it must see the catchers
                 for owner, attr, value in caught:
                     setattr(owner, attr, value)
@@ -243,9 +244,10 @@ class ProbeRenderer:
             setattr(owner, attr, value)
         return old
 
-    def _render_panorama(self, origin, height, catcher=False):
+    def _render_panorama(self, origin, height, catcher=False, rows=None):
         """One render of the panorama as set up now: float32 (H, 2H, 3), the sky laid under; with
-        ``catcher`` the Shadow Catcher pass and the Combined pass's alpha (H, 2H, 4)."""
+        ``catcher`` the Shadow Catcher pass and the Combined pass's alpha (H, 2H, 4), the pass
+        denoised in its ``rows`` when the compositor denoises it."""
         global render_count
         try:
             bpy.ops.render.render(write_still=True)
@@ -257,12 +259,13 @@ class ProbeRenderer:
         if catcher:
             path = self.scene.render.filepath
             alpha = read_exr(path, "RGBA")[..., 3:]
+            caught = read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS)
             if self.denoise and self.catcher_denoiser == "COMPOSITOR":
-                caught = pass_denoise.denoise_pass(path, self.view_layer.name, SHADOW_CATCHER_PASS,
-                                                   (2 * height, height), self.scene.cycles,
-                                                   os.path.join(self._tmpdir, "denoised.exr"))
-            else:
-                caught = read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS)
+                first, last = rows or (0, height)     # as Cycles, only the render border's rows
+                normal = read_exr(path, "RGB", layer=DENOISING_NORMAL_PASS)
+                caught[first:last] = pass_denoise.denoise_pass(
+                    caught[first:last], normal[first:last], self.scene.cycles,
+                    os.path.join(self._tmpdir, "denoised.exr"))
             return np.concatenate([caught, alpha], axis=-1)
         if self._world is None:
             return read_exr(self.scene.render.filepath, "RGB")

@@ -298,10 +298,11 @@ def test_the_compositor_denoised_catcher_agrees_with_cycles_and_leaves_the_compo
     shadow = by_cycles.mean(axis=-1) < -0.03
     assert shadow.sum() > 100
     difference = np.abs(by_compositor - by_cycles).mean(axis=-1)
-    # measured 0.0009 (95th percentile 0.0021, max 0.006-0.007) in the shadow, 0.00026 over the
-    # panorama on 4.5, 5.2 and 5.3 (without the guides, as Cycles gives them, 0.0055 / 0.0012)
-    assert difference[shadow].mean() < 0.003, difference[shadow].mean()
-    assert difference.mean() < 0.001, difference.mean()
+    # measured 0.00012 (95th percentile 0.00024, max 0.0027-0.0029) in the shadow, 0.000025 over
+    # the panorama on 4.5, 5.2 and 5.3: OIDN on the same pass with the same guides. Without the
+    # guides as Cycles gives them 0.0055 / 0.0012; with the normal read as grey 0.0031 / 0.0008
+    assert difference[shadow].mean() < 0.001, difference[shadow].mean()
+    assert difference.mean() < 0.0002, difference.mean()
     # the same denoiser again: nothing to render
     renders = probe_renders()
     assert bpy.ops.platelight.bake_shadows(height=64, samples=16, method="CATCHER",
