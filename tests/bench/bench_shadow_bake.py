@@ -35,9 +35,10 @@ SETTINGS = [(method, height, samples, None, None, None)
             for height, samples in ((512, 1), (512, 4), (512, 8), (512, 16), (512, 64), (1024, 16))
             for method in ("TWO_RENDERS", "CATCHER/CYCLES", "CATCHER/COMPOSITOR")] + \
            [("TWO_RENDERS", 512, 16, "FAST", None, None), ("TWO_RENDERS", 512, 16, None, "RGB", None),
-            ("TWO_RENDERS", 512, 16, None, None, "BALANCED")]
-# PLATELIGHT_BENCH_SHADOW_ROWS="CATCHER/COMPOSITOR:512:16,TWO_RENDERS:512:16": only those rows
-# (default settings)
+            ("TWO_RENDERS", 512, 16, None, None, "BALANCED"), ("CATCHER/CYCLES", 512, 16, None, "RGB", None),
+            ("CATCHER/COMPOSITOR", 512, 16, None, "RGB", None)]
+# PLATELIGHT_BENCH_SHADOW_ROWS="CATCHER/COMPOSITOR:512:16,TWO_RENDERS:512:16:FAST": only those rows
+# (a fourth field: the row with that denoiser setting)
 ONLY = {tuple(v.split(":")) for v in os.environ.get("PLATELIGHT_BENCH_SHADOW_ROWS", "").split(",") if v}
 
 
@@ -61,7 +62,7 @@ def main(out_dir: pathlib.Path) -> None:
 
     rows = []
     for method, height, samples, prefilter, passes, quality in SETTINGS:
-        if ONLY and ((method, str(height), str(samples)) not in ONLY or prefilter or passes or quality):
+        if ONLY and (method, str(height), str(samples), *(v for v in (prefilter, passes, quality) if v)) not in ONLY:
             continue
 
         def bake(bpy_, route, method=method.split("/")[0], denoiser=(method.split("/") + ["CYCLES"])[1],
