@@ -6,10 +6,10 @@ with the CG there but unseen by camera rays (it still shadows and lights the pha
 ratio of the light each phantom point the panorama sees gets with the CG to the light without
 it. CATCHER (the default) renders it in one render: the phantoms are Cycles shadow catchers,
 which split each path at the phantom into one that sees the CG and one that does not, and the
-Shadow Catcher pass is their ratio, denoised by OIDN as such: by the compositor's Denoise node on
-that pass alone (DENOISERS, COMPOSITOR), or by Cycles with Combined and the matte (CYCLES). TWO_RENDERS renders the light with
-the CG and without it and divides; undenoised the two give the same ratio to the bit (same
-seed, same paths). A distance panorama tells the points seen from hidden ones. The scene is
+Shadow Catcher pass is their ratio, denoised by OIDN as such: by Cycles with Combined and the
+matte (DENOISERS, CYCLES) or by the compositor's Denoise node on that pass alone (COMPOSITOR).
+TWO_RENDERS renders the light with the CG and without it and divides; undenoised the two give
+the same ratio to the bit (same seed, same paths). A distance panorama tells the points seen from hidden ones. The scene is
 restored exactly, as after a probe bake."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""One pass of a multilayer EXR denoised by the compositor's Denoise node (OpenImageDenoise), in a
-temporary scene of its own: the user's compositor is never touched (on 4.5 it is the scene's own
+"""A render pass denoised by the compositor's Denoise node (OpenImageDenoise), in a temporary
+scene of its own: the user's compositor is never touched (on 4.5 it is the scene's own
 tree). The shadow bake's catcher render uses it so that OIDN runs on the Shadow Catcher pass only,
 where Cycles' denoiser also runs on Combined and the catcher matte (docs/decisions.md).
 
@@ -52,7 +52,8 @@ def denoise_pass(image, normal, cycles, out_path):
         block.colorspace_settings.is_data = True          # the values as they are
         rgba = np.ones((height, width, 4), dtype=np.float32)
         rgba[..., :3] = pixels
-        block.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())      # Blender's first row: the bottom
+        # Blender's first row is the bottom
+        block.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())
         node = tree.nodes.new("CompositorNodeImage")
         node.image = block
         return node.outputs["Image"]
