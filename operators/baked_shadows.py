@@ -6,8 +6,8 @@ with the CG there but unseen by camera rays (it still shadows and lights the pha
 ratio of the light each phantom point the panorama sees gets with the CG to the light without
 it. CATCHER (the default) renders it in one render: the phantoms are Cycles shadow catchers,
 which split each path at the phantom into one that sees the CG and one that does not, and the
-Shadow Catcher pass is their ratio, denoised by OIDN as such: by Cycles with Combined and the
-matte (DENOISERS, CYCLES) or by the compositor's Denoise node on that pass alone (COMPOSITOR).
+Shadow Catcher pass is their ratio, denoised by OIDN as such: by the compositor's Denoise node on
+that pass alone (DENOISERS, COMPOSITOR, the default) or by Cycles with Combined and the matte.
 TWO_RENDERS renders the light with the CG and without it and divides; undenoised the two give
 the same ratio to the bit (same seed, same paths). A distance panorama tells the points seen from hidden ones. The scene is
 restored exactly, as after a probe bake."""
@@ -139,11 +139,12 @@ METHODS = (("CATCHER", "Shadow Catcher", "One render of Cycles' Shadow Catcher p
             "denoised as such"),
            ("TWO_RENDERS", "Two Renders", "The light with the CG and without it, each denoised, divided"))
 DEFAULT_METHOD = "CATCHER"
-# Who denoises the CATCHER render (TWO_RENDERS: always Cycles)
+# Who denoises the CATCHER render (TWO_RENDERS: always Cycles). The compositor gives Cycles'
+# ratio (PSNR 43.4700 both at 512 x 16) about 2 s sooner: OIDN runs on that pass alone
 DENOISERS = (("COMPOSITOR", "Compositor", "Cycles' denoiser off, the compositor's Denoise node on the "
               "Shadow Catcher pass alone (with the scene's denoiser settings)"),
              ("CYCLES", "Cycles", "Cycles' own denoiser, which also denoises the Combined and matte passes"))
-DEFAULT_DENOISER = "CYCLES"
+DEFAULT_DENOISER = "COMPOSITOR"
 
 
 def bake_shadows(context, height: int | None = None, samples: int | None = None,
@@ -171,7 +172,9 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     method = method or (record or {}).get("method") or DEFAULT_METHOD
     if method not in {m[0] for m in METHODS}:
         raise PlateLightError(f"Unknown shadow bake method {method!r}: one of {', '.join(m[0] for m in METHODS)}.")
-    denoiser = denoiser or (record or {}).get("denoiser") or DEFAULT_DENOISER
+    # a catcher bake from before the choice was denoised by Cycles
+    kept = (record.get("denoiser") or "CYCLES") if record and record.get("method") == "CATCHER" else None
+    denoiser = denoiser or kept or DEFAULT_DENOISER
     if denoiser not in {d[0] for d in DENOISERS}:
         raise PlateLightError(f"Unknown shadow bake denoiser {denoiser!r}: one of "
                               f"{', '.join(d[0] for d in DENOISERS)}.")
