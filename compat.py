@@ -116,6 +116,15 @@ def new_compositor_tree(scene, name):
     return tree
 
 
+def remove_compositor_tree(scene):
+    """Remove the compositor tree new_compositor_tree() gave ``scene`` (on 4.5 it is the scene's
+    own and goes with the scene; on 5.x a node group of its own)."""
+    if not BLENDER_4 and scene.compositing_node_group is not None:
+        tree = scene.compositing_node_group
+        scene.compositing_node_group = None
+        bpy.data.node_groups.remove(tree)
+
+
 def composite_output(tree):
     """The input socket whose image is the render's composite (a new output node in ``tree``)."""
     if BLENDER_4:
@@ -153,6 +162,7 @@ _OPTION_PROPERTIES = {
     ("CompositorNodeSetAlpha", "Type"): "mode",
     ("CompositorNodeDenoise", "Prefilter"): "prefilter",
     ("CompositorNodeDenoise", "Quality"): "quality",
+    ("CompositorNodeDenoise", "HDR"): "use_hdr",
 }
 
 
@@ -162,6 +172,9 @@ def set_option(node, name, value):
         node.inputs[name].default_value = value
         return
     prop = _OPTION_PROPERTIES[(node.bl_idname, name)]
+    if node.bl_rna.properties[prop].type != "ENUM":
+        setattr(node, prop, value)
+        return
     items = node.bl_rna.properties[prop].enum_items
     wanted = value.casefold()
     match = next((i.identifier for i in items if i.name.casefold() == wanted), None)

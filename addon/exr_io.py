@@ -22,7 +22,8 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB", layer: str | None =
     the layer whose last name is this (a multilayer render's pass, "Shadow Catcher"), else the
     picture's.
 
-    A grey (Y-only) image is broadcast to RGB; a missing alpha reads as 1."""
+    A grey (Y-only) image is broadcast to RGB, a vector pass's X, Y, Z read as R, G, B; a missing
+    alpha reads as 1."""
     import OpenEXR
 
     path = os.fspath(path)
@@ -40,6 +41,8 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB", layer: str | None =
         raise PlateLightError(f"EXR has no {wanted} (found {', '.join(found[:12])}): {path}")
     if all(k in planes for k in "RGB"):
         rgb = [planes["R"], planes["G"], planes["B"]]
+    elif all(k in planes for k in "XYZ"):          # a vector pass (Denoising Normal)
+        rgb = [planes["X"], planes["Y"], planes["Z"]]
     else:
         rgb = [planes["Y"]] * 3
     if channels == "RGBA":
@@ -67,7 +70,7 @@ def _choose_layer(parts: list[dict], wanted: str | None = None) -> dict | None:
         for name, pixels in part.items():
             layer, _, channel = name.rpartition(".")
             channel = channel.upper()
-            if channel in ("R", "G", "B", "A", "Y"):
+            if channel in ("R", "G", "B", "A", "X", "Y", "Z"):
                 layers.setdefault(layer, {}).setdefault(channel, pixels)
     usable = {k: v for k, v in layers.items() if all(c in v for c in "RGB") or "Y" in v}
     if wanted is not None:

@@ -43,6 +43,7 @@ LAYER_SHADOWS = "PlateLight Shadows"        # the layered catcher's shadow layer
 BAKED_SHADOW_MATERIAL = "PlateLight Baked Shadows"   # that layer's override in the baked method
 SHADOWS_FOLDER = "_shadows"                 # in the maps folder: the shot's baked shadow panorama
 SHADOW_BAKE_LAYER = "PlateLight Shadow Bake"   # the shadow bake's temporary view layer
+PASS_DENOISE = "PlateLight Pass Denoise"   # the temporary scene (and 5.x compositor group) that denoises one pass
 
 # --- footage and grain (operators/plate.py, operators/grain.py)
 PLATE_IMAGE = "PlateLight Plate"

@@ -6,9 +6,10 @@ with the CG there but unseen by camera rays (it still shadows and lights the pha
 ratio of the light each phantom point the panorama sees gets with the CG to the light without
 it. CATCHER (the default) renders it in one render: the phantoms are Cycles shadow catchers,
 which split each path at the phantom into one that sees the CG and one that does not, and the
-Shadow Catcher pass is their ratio, denoised by OIDN as such. TWO_RENDERS renders the light with
-the CG and without it and divides; undenoised the two give the same ratio to the bit (same
-seed, same paths). A distance panorama tells the points seen from hidden ones. The scene is
+Shadow Catcher pass is their ratio, denoised by OIDN as such: by the compositor's Denoise node on
+that pass alone (DENOISERS, COMPOSITOR, the default) or by Cycles with Combined and the matte.
+TWO_RENDERS renders the light with the CG and without it and divides; undenoised the two give
+the same ratio to the bit (same seed, same paths). A distance panorama tells the points seen from hidden ones. The scene is
 restored exactly, as after a probe bake."""
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ from ..addon.compositing import baked_shadows as engine
 from ..addon.errors import PlateLightError
 from ..addon.ibl import distance as distance_maps
 from ..node_groups.baked_shadow import baked_shadow_material
+from .bake import pass_denoise
 from .bake.inputs import Describer, point_inside, world_corners, world_description
 from .bake.probe_render import ProbeRenderer
 from .bake.scene_state import SceneState
@@ -95,7 +97,7 @@ def _matte_grey():
     return material
 
 
-def shadows_hash(scene, height, samples, method) -> str:
+def shadows_hash(scene, height, samples, method, denoiser="CYCLES") -> str:
     """The content hash of what the shadow panorama depends on: the world, every renderable
     object (place, shape, materials, visibility), the bake's settings and Cycles' bounces. A
     phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
@@ -113,8 +115,9 @@ def shadows_hash(scene, height, samples, method) -> str:
     seen = sorted((ob.name_full, digest(ob)) for ob in scene.objects
                   if not ob.hide_render and (ob.type in GEOMETRY_TYPES or ob.type == "LIGHT"))
     cycles = scene.cycles
-    return content_hash({"world": content_hash(world_description(scene)), "seen": seen,
-                         "settings": [int(height), int(samples), str(method)],
+    # Cycles' denoiser adds nothing: the bakes from before the choice stay current
+    settings = [int(height), int(samples), str(method)] + ([] if denoiser == "CYCLES" else [str(denoiser)])
+    return content_hash({"world": content_hash(world_description(scene)), "seen": seen, "settings": settings,
                          "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
                                     cycles.transmission_bounces]})
 
@@ -128,7 +131,7 @@ def baked_is_current(scene) -> bool | None:
     if record is None:
         return None
     return record.get("hash") == shadows_hash(scene, record.get("height", 0), record.get("samples", 0),
-                                              record.get("method", ""))
+                                              record.get("method", ""), record.get("denoiser") or "CYCLES")
 
 
 DEFAULT_HEIGHT, DEFAULT_SAMPLES = 512, 16
@@ -136,13 +139,19 @@ METHODS = (("CATCHER", "Shadow Catcher", "One render of Cycles' Shadow Catcher p
             "denoised as such"),
            ("TWO_RENDERS", "Two Renders", "The light with the CG and without it, each denoised, divided"))
 DEFAULT_METHOD = "CATCHER"
+# Who denoises the CATCHER render (TWO_RENDERS: always Cycles). The compositor gives Cycles'
+# ratio (PSNR 43.4700 both at 512 x 16) about 2 s sooner: OIDN runs on that pass alone
+DENOISERS = (("COMPOSITOR", "Compositor", "Cycles' denoiser off, the compositor's Denoise node on the "
+              "Shadow Catcher pass alone (with the scene's denoiser settings)"),
+             ("CYCLES", "Cycles", "Cycles' own denoiser, which also denoises the Combined and matte passes"))
+DEFAULT_DENOISER = "COMPOSITOR"
 
 
 def bake_shadows(context, height: int | None = None, samples: int | None = None,
-                 use_cache: bool = True, method: str | None = None) -> dict:
+                 use_cache: bool = True, method: str | None = None, denoiser: str | None = None) -> dict:
     """Bake the shot's shadow panorama and (re)build the override material; returns a summary
     (``reused``: the bake on disk was current and nothing was rendered). ``height``/``samples``/
-    ``method`` (METHODS) None: those of the bake on disk (a farm's re-bake keeps the artist's),
+    ``method`` (METHODS)/``denoiser`` (DENOISERS) None: those of the bake on disk (a farm's re-bake keeps the artist's),
     else the defaults."""
     scene = context.scene
     if scene.world is None:
@@ -163,7 +172,20 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     method = method or (record or {}).get("method") or DEFAULT_METHOD
     if method not in {m[0] for m in METHODS}:
         raise PlateLightError(f"Unknown shadow bake method {method!r}: one of {', '.join(m[0] for m in METHODS)}.")
-    digest = shadows_hash(scene, height, samples, method)
+    # a catcher bake from before the choice was denoised by Cycles
+    kept = (record.get("denoiser") or "CYCLES") if record and record.get("method") == "CATCHER" else None
+    denoiser = denoiser or kept or DEFAULT_DENOISER
+    if denoiser not in {d[0] for d in DENOISERS}:
+        raise PlateLightError(f"Unknown shadow bake denoiser {denoiser!r}: one of "
+                              f"{', '.join(d[0] for d in DENOISERS)}.")
+    notes = []
+    if method != "CATCHER":
+        denoiser = "CYCLES"
+    elif denoiser == "COMPOSITOR" and not pass_denoise.available():
+        denoiser = "CYCLES"
+        notes.append("This Blender's compositor cannot denoise (no OpenImageDenoise): Cycles denoised "
+                     "the shadow bake.")
+    digest = shadows_hash(scene, height, samples, method, denoiser)
     if use_cache and record is not None and record.get("hash") == digest and \
             bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) is not None and \
             os.path.isfile(os.path.join(folder, engine.RATIO_FILE)):
@@ -181,7 +203,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     # A view layer of its own: the composite's layers hold things out, exclude the CG or override
     # every material (a farm's bake opens the file on whichever of them was active)
     layer = scene.view_layers.new(names.SHADOW_BAKE_LAYER)
-    renderer = ProbeRenderer(context, state, None, denoise=True, samples=samples, view_layer=layer)
+    renderer = ProbeRenderer(context, state, None, denoise=True, samples=samples, view_layer=layer,
+                             catcher_denoiser=denoiser)
     grey = _matte_grey()
     try:
         for other in scene.view_layers:
@@ -214,10 +237,10 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
              else engine.shadow_ratio(lit_with, lit_without))
     distance_path = distance_maps.write_distance(folder, distance)
     ratio_path = engine.write_baked(folder, engine.ratio_to_texture(ratio), centre, height, samples, digest,
-                                    method)
+                                    method, denoiser)
     baked_shadow_material(ratio_path, distance_path, centre)
     return {"seconds": time.perf_counter() - t0, "folder": folder, "centre": centre,
-            "warnings": list(warnings) + list(errors or []), "reused": False}
+            "warnings": notes + list(warnings) + list(errors or []), "reused": False}
 
 
 class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
@@ -236,6 +259,8 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
                          default=DEFAULT_SAMPLES, min=1, max=65536)
     method: EnumProperty(name="Method", description="How the ratio of the light with the CG to the "
                          "light without it is rendered", items=METHODS, default=DEFAULT_METHOD)
+    denoiser: EnumProperty(name="Denoiser", description="Who denoises the Shadow Catcher method's render",
+                           items=DENOISERS, default=DEFAULT_DENOISER)
 
     @classmethod
     def poll(cls, context):
@@ -247,7 +272,7 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
     def execute(self, context):
         try:
             summary = bake_shadows(context, self.height, self.samples, use_cache=not self.force,
-                                   method=self.method)
+                                   method=self.method, denoiser=self.denoiser)
         except PlateLightError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

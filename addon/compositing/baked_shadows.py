@@ -98,7 +98,7 @@ def ratio_to_texture(ratio: np.ndarray) -> np.ndarray:
 
 
 def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: int, digest: str = "",
-                method: str = "") -> str:
+                method: str = "", denoiser: str = "") -> str:
     """Write the ratio texture and its record (the panorama's centre, the bake's settings, the
     inputs' hash) into ``folder``; the record last, so a bake stopped halfway is never taken as
     current."""
@@ -107,7 +107,7 @@ def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: 
     write_exr(path, texture)
     write_json_atomic(os.path.join(folder, RECORD_FILE),
                       {"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples),
-                       "method": method, "hash": digest})
+                       "method": method, "denoiser": denoiser, "hash": digest})
     return path
 
 

@@ -20,13 +20,14 @@ from ...addon.ibl.distance import near_silhouette
 from ...addon.ibl.equirect import downsample_area
 from ..common import addon_preferences
 from ..world_environment import world_image
-from . import behind_render, distance_render
+from . import behind_render, distance_render, pass_denoise
 
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
 # The multilayer EXR's layer (pass) that holds Cycles' shadow catcher ratio.
 SHADOW_CATCHER_PASS = "Shadow Catcher"
+DENOISING_NORMAL_PASS = "Denoising Normal"
 # Cycles builds the world's light-importance map at each render session. Capping it at 256
 # columns (scene.platelight.probe_fast_world) makes a 128x64 probe about 3x faster, but under a
 # small bright sun (the city HDRI) it leaves fireflies on sunlit surfaces and their median 22 %
@@ -48,9 +49,13 @@ class ProbeRenderer:
     cache hits never touches the render settings), ``end()`` removes the camera, the render
     results and the temporary folder (the bake restores the recorded settings before)."""
 
-    def __init__(self, context, state, world_map_resolution, denoise=False, samples=None, view_layer=None):
+    def __init__(self, context, state, world_map_resolution, denoise=False, samples=None, view_layer=None,
+                 catcher_denoiser="CYCLES"):
         self.context = context
         self.denoise = denoise               # OpenImageDenoise on the panorama (baked shadows)
+        # Who denoises a catcher render's pass: CYCLES (with Combined and the matte) or the
+        # COMPOSITOR's Denoise node (that pass alone, pass_denoise.py)
+        self.catcher_denoiser = catcher_denoiser
         self.samples = samples               # None: the scene's Probe Samples
         self.scene = context.scene
         self.view_layer = view_layer or context.view_layer     # the layer rendered
@@ -196,7 +201,7 @@ class ProbeRenderer:
                         setattr(ob, flag, False)
             caught = self._set(self._catcher_settings(catchers)) if catchers else []
             try:
-                env = self._render_panorama(origin, height, catcher=bool(catchers))
+                env = self._render_panorama(origin, height, catcher=bool(catchers), rows=rows)
             finally:                         # before the distance map: it must see the catchers
                 for owner, attr, value in caught:
                     setattr(owner, attr, value)
@@ -220,7 +225,11 @@ class ProbeRenderer:
         EXR with their pass. The sky is rendered, not transparent: a catcher is transparent in the
         Combined pass, so only an opaque sky tells the two apart there."""
         fmt = self.scene.render.image_settings
-        return ([(ob, "is_shadow_catcher", True) for ob in catchers] +
+        by_compositor = []
+        if self.denoise and self.catcher_denoiser == "COMPOSITOR":
+            by_compositor = [(self.scene.cycles, "use_denoising", False),
+                             (self.view_layer.cycles, "denoising_store_passes", True)]
+        return by_compositor + ([(ob, "is_shadow_catcher", True) for ob in catchers] +
                 [(self.view_layer.cycles, "use_pass_shadow_catcher", True),
                  (self.scene.render, "film_transparent", False)] +
                 [(fmt, attr, value) for attr, value in compat.multilayer_exr_format()] +
@@ -235,9 +244,10 @@ class ProbeRenderer:
             setattr(owner, attr, value)
         return old
 
-    def _render_panorama(self, origin, height, catcher=False):
+    def _render_panorama(self, origin, height, catcher=False, rows=None):
         """One render of the panorama as set up now: float32 (H, 2H, 3), the sky laid under; with
-        ``catcher`` the Shadow Catcher pass and the Combined pass's alpha (H, 2H, 4)."""
+        ``catcher`` the Shadow Catcher pass and the Combined pass's alpha (H, 2H, 4), the pass
+        denoised in its ``rows`` when the compositor denoises it."""
         global render_count
         try:
             bpy.ops.render.render(write_still=True)
@@ -249,7 +259,14 @@ class ProbeRenderer:
         if catcher:
             path = self.scene.render.filepath
             alpha = read_exr(path, "RGBA")[..., 3:]
-            return np.concatenate([read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS), alpha], axis=-1)
+            caught = read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS)
+            if self.denoise and self.catcher_denoiser == "COMPOSITOR":
+                first, last = rows or (0, height)     # as Cycles, only the render border's rows
+                normal = read_exr(path, "RGB", layer=DENOISING_NORMAL_PASS)
+                caught[first:last] = pass_denoise.denoise_pass(
+                    caught[first:last], normal[first:last], self.scene.cycles,
+                    os.path.join(self._tmpdir, "denoised.exr"))
+            return np.concatenate([caught, alpha], axis=-1)
         if self._world is None:
             return read_exr(self.scene.render.filepath, "RGB")
         rgba = read_exr(self.scene.render.filepath, "RGBA")

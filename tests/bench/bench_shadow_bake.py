@@ -7,7 +7,9 @@ The composite benchmark's diffuse scene (bench_composite.py: its shot, its cache
 `bake_shadows(height, samples, method)` and the scene's Cycles denoiser settings, which the bake's
 renders keep. Methods: *two renders* (the panorama with the CG, the distance map, the panorama
 without it; the ratio divided in numpy) and *catcher* (one render of the Shadow Catcher pass with
-the phantoms as catchers, then the distance map). Bake seconds include the sphere's probe bake;
+the phantoms as catchers, then the distance map), its pass denoised by the compositor's Denoise node
+alone (*catcher, compositor*, the default) or by Cycles with Combined and the matte (*catcher,
+Cycles*). Bake seconds include the sphere's probe bake;
 *renders* are the shadow bake's Cycles renders in that order, timed by render_pre and render_post
 handlers. PSNR as in bench_composite (frame 24, peak the truth's 99.5th
 percentile). Timings on this 2-core machine vary by about 15 % between identical runs.
@@ -27,13 +29,16 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import bench_composite as bc  # noqa: E402
 
 SCENE = "diffuse"
-# (method, rows, samples, denoiser prefilter, input passes, quality): Cycles' defaults unless named
+# (method[/catcher denoiser], rows, samples, denoiser prefilter, input passes, quality): Cycles'
+# defaults unless named
 SETTINGS = [(method, height, samples, None, None, None)
             for height, samples in ((512, 1), (512, 4), (512, 8), (512, 16), (512, 64), (1024, 16))
-            for method in ("TWO_RENDERS", "CATCHER")] + \
+            for method in ("TWO_RENDERS", "CATCHER/CYCLES", "CATCHER/COMPOSITOR")] + \
            [("TWO_RENDERS", 512, 16, "FAST", None, None), ("TWO_RENDERS", 512, 16, None, "RGB", None),
-            ("TWO_RENDERS", 512, 16, None, None, "BALANCED")]
-# PLATELIGHT_BENCH_SHADOW_ROWS="CATCHER:512:16,TWO_RENDERS:512:16": only those rows (default settings)
+            ("TWO_RENDERS", 512, 16, None, None, "BALANCED"), ("CATCHER/CYCLES", 512, 16, None, "RGB", None),
+            ("CATCHER/COMPOSITOR", 512, 16, None, "RGB", None)]
+# PLATELIGHT_BENCH_SHADOW_ROWS="CATCHER/COMPOSITOR:512:16,TWO_RENDERS:512:16:FAST": only those rows
+# (a fourth field: the row with that denoiser setting)
 ONLY = {tuple(v.split(":")) for v in os.environ.get("PLATELIGHT_BENCH_SHADOW_ROWS", "").split(",") if v}
 
 
@@ -57,11 +62,11 @@ def main(out_dir: pathlib.Path) -> None:
 
     rows = []
     for method, height, samples, prefilter, passes, quality in SETTINGS:
-        if ONLY and ((method, str(height), str(samples)) not in ONLY or prefilter or passes or quality):
+        if ONLY and (method, str(height), str(samples), *(v for v in (prefilter, passes, quality) if v)) not in ONLY:
             continue
 
-        def bake(bpy_, route, method=method, height=height, samples=samples, prefilter=prefilter, passes=passes,
-                 quality=quality):
+        def bake(bpy_, route, method=method.split("/")[0], denoiser=(method.split("/") + ["CYCLES"])[1],
+                 height=height, samples=samples, prefilter=prefilter, passes=passes, quality=quality):
             cycles = bpy_.context.scene.cycles
             for attr, value in (("denoising_prefilter", prefilter), ("denoising_input_passes", passes),
                                 ("denoising_quality", quality)):
@@ -72,14 +77,17 @@ def main(out_dir: pathlib.Path) -> None:
             bpy_.app.handlers.render_post.append(finished)
             t0 = time.perf_counter()
             try:
-                assert bpy_.ops.platelight.bake_shadows(height=height, samples=samples, method=method) == {"FINISHED"}
+                # force: a row's folder may hold an earlier run's bake, which would be reused
+                assert bpy_.ops.platelight.bake_shadows(height=height, samples=samples, method=method,
+                                                        denoiser=denoiser, force=True) == {"FINISHED"}
             finally:
                 bpy_.app.handlers.render_pre.remove(started)
                 bpy_.app.handlers.render_post.remove(finished)
             return time.perf_counter() - t0
 
         bc.bake_route_shadows = bake
-        tag = f"shadow_bake_{method.lower()}_{height}_{samples}_{prefilter or ''}{passes or ''}{quality or ''}"
+        tag = (f"shadow_bake_{method.lower().replace('/', '_')}_{height}_{samples}_"
+               f"{prefilter or ''}{passes or ''}{quality or ''}")
         images, bake_s, _setup_s, _seconds = bc.composite_shot(bpy, hdri, material, box, "sbrdf_baked", 1,
                                                                plate_path, bc.CACHE / bc.SIZE / tag)
         image = images[-1]
@@ -101,7 +109,8 @@ def write_report(out_dir, rows):
              "| method | rows | spp | denoiser | bake (s) | renders (s) | PSNR shadow | PSNR object |",
              "|---|---:|---:|---|---:|---|---:|---:|"]
     for r in rows:
-        method = {"TWO_RENDERS": "two renders", "CATCHER": "catcher"}[r["method"]]
+        method = {"TWO_RENDERS": "two renders", "CATCHER/CYCLES": "catcher, Cycles",
+                  "CATCHER/COMPOSITOR": "catcher, compositor"}[r["method"]]
         lines.append(f"| {method} | {r['height']} | {r['samples']} | {r['denoiser']} | {r['bake_s']:.1f} | "
                      f"{' / '.join(f'{v:.1f}' for v in r['renders'])} | {r['shadow']:.2f} | {r['object']:.2f} |")
     out_dir.mkdir(parents=True, exist_ok=True)
