@@ -201,7 +201,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     for ob in phantoms:
         if point_inside(ob, depsgraph, centre):
             raise PlateLightError(f"The point above the CG lies inside '{ob.name}', so the shadows "
-                                  "cannot be seen from there; use the Shadow Catcher method.")
+                                  "cannot be seen from there; set up the composite with the Shadow Catcher "
+                                  "method instead of baked shadows.")
     if record is not None:                      # a bake stopped halfway is never taken as current
         os.remove(os.path.join(folder, engine.RECORD_FILE))
     t0 = time.perf_counter()
