@@ -97,7 +97,7 @@ def _matte_grey():
     return material
 
 
-def shadows_hash(scene, height, samples, method, denoiser="CYCLES") -> str:
+def shadows_hash(scene, height, samples, method, denoiser) -> str:
     """The content hash of what the shadow panorama depends on: the world, every renderable
     object (place, shape, materials, visibility), the bake's settings and Cycles' bounces. A
     phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
@@ -122,6 +122,12 @@ def shadows_hash(scene, height, samples, method, denoiser="CYCLES") -> str:
                                     cycles.transmission_bounces]})
 
 
+def recorded_denoiser(record) -> str:
+    """Who denoised the bake ``record`` describes: Cycles where it names none (a bake from
+    before the choice, or TWO_RENDERS)."""
+    return record.get("denoiser") or "CYCLES"
+
+
 def baked_is_current(scene) -> bool | None:
     """Do the baked shadows on disk still fit the scene? None when there is no readable bake."""
     try:
@@ -131,7 +137,7 @@ def baked_is_current(scene) -> bool | None:
     if record is None:
         return None
     return record.get("hash") == shadows_hash(scene, record.get("height", 0), record.get("samples", 0),
-                                              record.get("method", ""), record.get("denoiser") or "CYCLES")
+                                              record.get("method", ""), recorded_denoiser(record))
 
 
 DEFAULT_HEIGHT, DEFAULT_SAMPLES = 512, 16
@@ -175,8 +181,7 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     method = method or (record or {}).get("method") or DEFAULT_METHOD
     if method not in {m[0] for m in METHODS}:
         raise PlateLightError(f"Unknown shadow bake method {method!r}: one of {', '.join(m[0] for m in METHODS)}.")
-    # a catcher bake from before the choice was denoised by Cycles
-    kept = (record.get("denoiser") or "CYCLES") if record and record.get("method") == "CATCHER" else None
+    kept = recorded_denoiser(record) if record and record.get("method") == "CATCHER" else None
     denoiser = denoiser or kept or DEFAULT_DENOISER
     if denoiser not in {d[0] for d in DENOISERS}:
         raise PlateLightError(f"Unknown shadow bake denoiser {denoiser!r}: one of "

@@ -220,13 +220,18 @@ class ProbeRenderer:
                 setattr(ob, flag, value)
         return env
 
+    @property
+    def _compositor_denoises(self) -> bool:
+        """A catcher render is denoised by the compositor (its pass alone), not by Cycles."""
+        return self.denoise and self.catcher_denoiser == "COMPOSITOR"
+
     def _catcher_settings(self, catchers):
         """(owner, attribute, value) that render ``catchers`` as shadow catchers into a multilayer
         EXR with their pass. The sky is rendered, not transparent: a catcher is transparent in the
         Combined pass, so only an opaque sky tells the two apart there."""
         fmt = self.scene.render.image_settings
         by_compositor = []
-        if self.denoise and self.catcher_denoiser == "COMPOSITOR":
+        if self._compositor_denoises:
             by_compositor = [(self.scene.cycles, "use_denoising", False),
                              (self.view_layer.cycles, "denoising_store_passes", True)]
         return by_compositor + ([(ob, "is_shadow_catcher", True) for ob in catchers] +
@@ -260,7 +265,7 @@ class ProbeRenderer:
             path = self.scene.render.filepath
             alpha = read_exr(path, "RGBA")[..., 3:]
             caught = read_exr(path, "RGB", layer=SHADOW_CATCHER_PASS)
-            if self.denoise and self.catcher_denoiser == "COMPOSITOR":
+            if self._compositor_denoises:
                 first, last = rows or (0, height)     # as Cycles, only the render border's rows
                 normal = read_exr(path, "RGB", layer=DENOISING_NORMAL_PASS)
                 caught[first:last] = pass_denoise.denoise_pass(
