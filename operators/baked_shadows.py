@@ -118,8 +118,20 @@ def shadows_hash(scene, height, samples, method, denoiser) -> str:
     # Cycles' denoiser adds nothing: the bakes from before the choice stay current
     settings = [int(height), int(samples), str(method)] + ([] if denoiser == "CYCLES" else [str(denoiser)])
     return content_hash({"world": content_hash(world_description(scene)), "seen": seen, "settings": settings,
-                         "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
+                         "render": [cycles.max_bounces, bake_diffuse_bounces(cycles), cycles.glossy_bounces,
                                     cycles.transmission_bounces]})
+
+
+# The bake's diffuse bounces at most: the phantom's light, the CG's shadow and the CG's first
+# bounce onto the phantom (colour bleeding) need 2. Deeper bounces change the ratio by less
+# than their noise: the benchmark's shadow (truth at Cycles' default of 4) came out 1.1 dB
+# closer with 3 than with 4 (docs/decisions.md, "The shadow bake's diffuse bounces")
+SHADOW_BAKE_DIFFUSE_BOUNCES = 3
+
+
+def bake_diffuse_bounces(cycles) -> int:
+    """The diffuse bounces the shadow bake renders with: the scene's, at most the cap."""
+    return min(int(cycles.diffuse_bounces), SHADOW_BAKE_DIFFUSE_BOUNCES)
 
 
 def recorded_denoiser(record) -> str:
@@ -222,6 +234,7 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         for other in scene.view_layers:
             if other != layer and other.use:
                 state.set(other, "use", False)
+        state.set(scene.cycles, "diffuse_bounces", bake_diffuse_bounces(scene.cycles))
         # Phantoms are rendered plain grey: a matte albedo cancels in the ratio, and a textured
         # one (the plate's albedo) made the two denoised renders differ by up to 5 % far from any
         # shadow (the denoiser sees the whole panorama)

@@ -99,6 +99,9 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
 
 
 def test_bake_restores_the_scene_and_bad_input_is_one_sentence(bpy_clean, tmp_path):
+    from platelight.addon import names
+    from platelight.operators.baked_shadows import SHADOW_BAKE_DIFFUSE_BOUNCES
+
     bpy = bpy_clean
     scene, floor, ball = floating_black_ball(bpy, tmp_path)
     # the method before a bake: said, nothing changed
@@ -124,17 +127,29 @@ def test_bake_restores_the_scene_and_bad_input_is_one_sentence(bpy_clean, tmp_pa
         bpy.ops.platelight.bake_shadows(height=32, samples=2)
     floor.platelight.phantom = True
 
-    before = (scene.camera.name, scene.render.resolution_x, scene.render.resolution_y,
-              scene.cycles.samples, scene.cycles.use_denoising, scene.render.filepath,
-              ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects),
-              scene.render.use_border, scene.render.border_min_y, scene.render.border_max_y)
+    def state():
+        return (scene.camera.name, scene.render.resolution_x, scene.render.resolution_y,
+                scene.cycles.samples, scene.cycles.use_denoising, scene.render.filepath,
+                ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects),
+                scene.render.use_border, scene.render.border_min_y, scene.render.border_max_y,
+                scene.cycles.diffuse_bounces)
 
-    assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
-    after = (scene.camera.name, scene.render.resolution_x, scene.render.resolution_y,
-             scene.cycles.samples, scene.cycles.use_denoising, scene.render.filepath,
-             ball.visible_camera, ball.hide_render, floor.is_shadow_catcher, len(bpy.data.objects),
-             scene.render.use_border, scene.render.border_min_y, scene.render.border_max_y)
-    assert after == before
+    scene.cycles.diffuse_bounces = 6
+    before = state()
+    bounces = []                 # what each of the bake's panorama renders traced with
+
+    def seen(scene_, *_):
+        if scene_.camera is not None and scene_.camera.name == names.PROBE_CAMERA:
+            bounces.append(scene_.cycles.diffuse_bounces)
+
+    bpy.app.handlers.render_pre.append(seen)
+    try:
+        assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
+    finally:
+        bpy.app.handlers.render_pre.remove(seen)
+    assert state() == before
+    # the bake's bounces capped (deeper ones add noise, not ratio), the scene's kept
+    assert len(bounces) == 2 and set(bounces) == {SHADOW_BAKE_DIFFUSE_BOUNCES}, bounces
     assert (tmp_path / "maps" / "_shadows" / "shadow_ratio.exr").is_file()
     # a second run replaces the bake in place: one material, no duplicates
     assert bpy.ops.platelight.bake_shadows(height=32, samples=2) == {"FINISHED"}
