@@ -7,10 +7,14 @@ the light its centre probe sees, and that glow filled in its own contact shadow 
 0.2 m of contact at 0.62 of the plate against the truth's 0.50, issue 11). A real surface there
 reflects the dark floor it faces; the Principled twin does exactly that when path-traced.
 
-So the material's output is  Mix(twin, probe emission, max(Is Camera Ray, Emission For All
-Rays)).  ``Emission For All Rays`` = 1 is the paper's model (the emission lights everything) and
-stays selectable; 0, the default, gives the twin to every non-camera ray. Both engines evaluate
-Light Path's Is Camera Ray (EEVEE: 1 when rasterising the view, 0 in its light-probe captures).
+So the material's output is  Mix(twin, probe emission, max(Is Camera Ray x Camera Sees SBRDF,
+Emission For All Rays)).  ``Emission For All Rays`` = 1 is the paper's model (the emission lights
+everything) and stays selectable; 0, the default, gives the twin to every non-camera ray. Both
+engines evaluate Light Path's Is Camera Ray (EEVEE: 1 when rasterising the view, 0 in its
+light-probe captures). ``Camera Sees SBRDF`` = 0 gives the camera the twin too: the object is
+path-traced as the Principled material it came from (setup_composite does that for metals in
+Cycles, where it measured more accurate at equal time; docs/decisions.md). Cycles folds the
+constant 0 through the Math and Mix nodes, so the SBRDF's nodes are then not evaluated at all.
 """
 from __future__ import annotations
 
@@ -23,7 +27,8 @@ from ..addon.material.principled import PrincipledValues, principled_to_sbrdf, s
 from .principled_nodes import SOCKETS, read_principled
 
 TWIN_NODE = names.TWIN_NODE
-SPLIT_NODE = names.RAY_SPLIT_NODE            # max(Is Camera Ray, Emission For All Rays)
+SPLIT_NODE = names.RAY_SPLIT_NODE            # max(Is Camera Ray x Camera Sees SBRDF, Emission For All Rays)
+CAMERA_NODE = names.RAY_CAMERA_NODE          # Is Camera Ray x Camera Sees SBRDF
 MIX_NODE = names.RAY_MIX_NODE
 LIGHT_PATH_NODE = names.LIGHT_PATH_NODE
 SOURCE_KEY = "platelight_source_material"     # set by apply_sbrdf on a converted material
@@ -76,12 +81,47 @@ def wire_twin(material, emission_socket, params, emission_for_all_rays=None):
         split.inputs[1].default_value = 1.0 if emission_for_all_rays else 0.0
     _emission_sampling(material)
     mix = _node(tree, MIX_NODE, "ShaderNodeMixShader", (x - 120, y))
-    tree.links.new(path.outputs["Is Camera Ray"], split.inputs[0])
+    _camera_switch(tree, path, split)
     tree.links.new(split.outputs[0], mix.inputs["Fac"])
     tree.links.new(twin.outputs["BSDF"], mix.inputs[1])
     tree.links.new(emission_socket, mix.inputs[2])
     tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
     return mix
+
+
+def _camera_switch(tree, path, split):
+    """The Camera Sees SBRDF factor between Is Camera Ray and the split (1, the SBRDF, where it is
+    new: materials from before it keep their look); returns the node."""
+    fresh = tree.nodes.get(CAMERA_NODE) is None
+    x, y = split.location
+    camera = _node(tree, CAMERA_NODE, "ShaderNodeMath", (x - 180, y + 150))
+    camera.operation = "MULTIPLY"
+    if fresh:
+        camera.inputs[1].default_value = 1.0
+    tree.links.new(path.outputs["Is Camera Ray"], camera.inputs[0])
+    tree.links.new(camera.outputs[0], split.inputs[0])
+    return camera
+
+
+def camera_sees_sbrdf(material) -> bool:
+    """Does the camera see the material's SBRDF (else its Principled twin, path-traced)?"""
+    tree = material.node_tree if material is not None else None
+    camera = tree.nodes.get(CAMERA_NODE) if tree is not None else None
+    return camera is None or camera.inputs[1].default_value >= 0.5
+
+
+def has_ray_split(material) -> bool:
+    return material.node_tree is not None and SPLIT_NODE in material.node_tree.nodes \
+        and LIGHT_PATH_NODE in material.node_tree.nodes
+
+
+def set_camera_sees_sbrdf(material, value: bool) -> None:
+    """Give the camera the SBRDF (True) or the Principled twin (False)."""
+    tree = material.node_tree
+    split, path = tree.nodes.get(SPLIT_NODE), tree.nodes.get(LIGHT_PATH_NODE)
+    if split is None or path is None:
+        raise ValueError(f"{material.name} has no PlateLight ray split (not an SBRDF material)")
+    _camera_switch(tree, path, split).inputs[1].default_value = 1.0 if value else 0.0
 
 
 def material_output(tree):

@@ -41,10 +41,17 @@ def sbrdf_node(material):
 
 
 def shaded_by_sbrdf(ob) -> bool:
-    """Does every material slot of ``ob`` hold a PlateLight SBRDF material? Camera rays then see
-    only probe look-ups, so its pixels are noise-free up to their anti-aliasing."""
+    """Does every material slot of ``ob`` hold a PlateLight SBRDF material that the camera sees
+    (not its path-traced twin)? Camera rays then see only probe look-ups, so its pixels are
+    noise-free up to their anti-aliasing."""
     slots = [slot.material for slot in getattr(ob, "material_slots", ())]
-    return bool(slots) and all(sbrdf_node(material) is not None for material in slots)
+    return bool(slots) and all(sbrdf_node(material) is not None and ray_twin.camera_sees_sbrdf(material)
+                               for material in slots)
+
+
+def is_metal(material) -> bool:
+    """Is the SBRDF material a metal (its Principled twin's Metallic at least a half)?"""
+    return ray_twin.twin_values(material, read_params(material)).metallic >= 0.5
 
 
 def probe_node(material):

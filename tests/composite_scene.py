@@ -74,6 +74,16 @@ def add_sun(bpy, scene, direction=SUN_DIR, strength=4.0):
     return sun
 
 
+def metal_material(name, colour, roughness):
+    """A new Principled metal (Metallic 1) of that base colour and roughness."""
+    material = compat().new_material(name)
+    bsdf = compat().node_tree(material).nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
+    bsdf.inputs["Metallic"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = roughness
+    return material
+
+
 def grey_world(bpy, scene, value=0.15):
     world = compat().new_world("World")
     world.node_tree.nodes["Background"].inputs[0].default_value = (value, value, value, 1.0)

@@ -55,12 +55,19 @@ MATERIALS = {
     "rough metal": dict(colour=(0.7, 0.7, 0.7), roughness=0.6, metallic=1.0),
 }
 # setup_composite's arguments per route (the rest are its defaults)
-SETUP = {"sbrdf": {}, "sbrdf_ggx": {}, "sbrdf_phong": {}, "sbrdf_paper": {}, "lamps": {}, "sunsky": {}, "cycles": {},
-         "sbrdf_layered": dict(method="LAYERED", cg_samples=4),
+# Since session 29 the defaults path-trace a metal's Principled twin for Cycles' camera; the routes
+# about the SBRDF's own shading pin it (metals="SBRDF"), and so do the *(SBRDF)* routes
+SBRDF = dict(metals="SBRDF")
+SETUP = {"sbrdf": {}, "sbrdf_ggx": SBRDF, "sbrdf_phong": SBRDF, "sbrdf_paper": SBRDF, "lamps": {}, "sunsky": {},
+         "cycles": {},
+         "sbrdf_layered": dict(method="LAYERED", cg_samples=4, **SBRDF),
          "sbrdf_baked": dict(method="BAKED"),      # listed samples: the CG layer's
          "sbrdf_eevee": dict(engine="EEVEE"),
-         "sbrdf_eevee_baked": dict(engine="EEVEE", method="BAKED")}
-BAKED_ROUTES = ("sbrdf_baked", "sbrdf_eevee_baked")   # the shot's shadows baked once
+         "sbrdf_eevee_baked": dict(engine="EEVEE", method="BAKED"),
+         "cycles_baked": dict(method="BAKED"),
+         "sbrdf_sbrdf": SBRDF, "sbrdf_baked_sbrdf": dict(method="BAKED", **SBRDF)}
+# the shot's shadows baked once
+BAKED_ROUTES = ("sbrdf_baked", "sbrdf_eevee_baked", "cycles_baked", "sbrdf_baked_sbrdf")
 # Probes are view-independent: in a shot where the camera moves and the objects stand still (the
 # paper's AR case) one bake serves every frame. Times are reported per frame of such a shot too.
 SHOT_FRAMES = 24
@@ -336,7 +343,12 @@ EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,)),
                 # the glossy maps blurred with GGX's lobes (scene setting Glossy Lobes)
                 "ggx": ("platelight ggx lobes", "sbrdf_ggx", (4, 16)),
                 # the four Phong maps read round (the default before the view-dependent look-ups)
-                "phong": ("platelight phong lobes", "sbrdf_phong", (4, 16))}
+                "phong": ("platelight phong lobes", "sbrdf_phong", (4, 16)),
+                # the Principled sphere path-traced in the CG layer over the baked shadows
+                "principled": ("principled baked", "cycles_baked", (4, 16)),
+                # a metal shaded by its SBRDF (the default before session 29; a dielectric's default)
+                "sbrdf": ("platelight (SBRDF)", "sbrdf_sbrdf", (4, 16)),
+                "sbrdf_baked": ("platelight baked (SBRDF)", "sbrdf_baked_sbrdf", (1, 4, 16))}
 GLOSSY_LOBES = {"sbrdf_ggx": "ggx", "sbrdf_phong": "phong"}     # the routes that set Glossy Lobes
 SHOT_REFERENCE = "catcher"
 # The shot: the camera orbits 20 degrees about the sphere over 24 frames; rendered and scored are
@@ -420,6 +432,8 @@ def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, ou
     bake_s = 0.0
     if route.startswith("sbrdf"):
         bake_s = sbrdf_sphere(bpy, scene, sphere, out_dir / "frame", paper=route == "sbrdf_paper", route=route)
+    if route in BAKED_ROUTES:
+        scene.platelight.maps_dir = str(out_dir / "frame_probes")     # the sbrdf routes set it too
         bake_s += bake_route_shadows(bpy, route)
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(**setup_arguments(route, samples)) == {"FINISHED"}
@@ -609,7 +623,9 @@ def write_report(out_dir, rows):
         "the floor (and box) as shadow catchers, the plate times the Shadow Catcher pass, then the CG "
         "over it, OIDN on the catcher pass and on the CG where it covers the pixel (PlateLight's compositor group does exactly "
         "this). *platelight*: `setup_composite`'s defaults with the sphere converted to the "
-        "PlateLight SBRDF and shaded from its own probe (one bake at the scene's default probe "
+        "PlateLight SBRDF (since session 29 those defaults show Cycles' camera a metal's Principled twin, "
+        "path-traced and denoised; *platelight (SBRDF)* and *platelight baked (SBRDF)* pin the SBRDF, "
+        "`metals='SBRDF'`, and are what the metal scenes' *platelight* rows measured before) and shaded from its own probe (one bake at the scene's default probe "
         "samples, sized to the sphere on screen, serves the shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
         "specular look-ups; shadow pass denoised, the CG only where it covers the pixel and only for the sharp mirror (a smooth SBRDF is not). *platelight baked*: the same sphere, the shot's "
         "shadows baked once (`bake_shadows()` defaults: a 512-row panorama at 16 spp, only its rows that see a "
@@ -623,7 +639,9 @@ def write_report(out_dir, rows):
         "*platelight baked*, then `setup_composite(engine='EEVEE', method='BAKED')`: EEVEE renders "
         "the two emission-only layers. *platelight (paper)*: the paper's model as written (cosine "
         "falloff, diffuse and specular added in full, owner hidden in its probe, the emission "
-        "lighting the phantoms), still with parallax.",
+        "lighting the phantoms), still with parallax. *principled baked* (`PLATELIGHT_BENCH_EXTRA=principled`, since "
+        "session 29): the catcher's Principled sphere, not converted, path-traced in the CG layer at the listed "
+        "samples (OIDN where it covers the pixel) over the shadows baked as for *platelight baked*.",
         "",
         "Times (s): *bake* the probe bake (and the baked route's shadow bake), *setup* plate + composite set-up, *first* the first "
         "frame's render (scene sync, shader compilation), *warm* a later frame (persistent data), "
@@ -672,8 +690,9 @@ def write_report(out_dir, rows):
                          + " | " + " | ".join(fmt(sp) for _, sp in cells) + " |")
     (out_dir / f"{stem}.md").write_text("\n".join(lines) + "\n")
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
-    colours = dict(zip(routes, ("tab:red", "tab:orange", "tab:green", "tab:purple", "tab:blue",
-                                "tab:brown", "tab:gray", "tab:olive")))
+    palette = ("tab:red", "tab:orange", "tab:green", "tab:purple", "tab:blue", "tab:brown", "tab:gray",
+               "tab:olive", "tab:cyan", "tab:pink", "black", "gold")
+    colours = {route: palette[i % len(palette)] for i, route in enumerate(routes)}
     for ax, key, title in ((axes[0], "psnr_object", "object"), (axes[1], "psnr_shadow", "shadow"),
                            (axes[2], "psnr_all", "frame")):
         for scene_name, marker in zip(scenes, "osD^vP"):

@@ -11,7 +11,7 @@ import pytest
 import support
 from support import compat
 from composite_scene import (H, SPHERE_C, SPHERE_R, W, add_camera, add_plane, add_sphere, add_sun,  # noqa: F401
-                             build_scene, grey_world, ground_points, in_shadow, inner, ops_module,
+                             build_scene, grey_world, ground_points, in_shadow, inner, metal_material, ops_module,
                              random_plate, render, render_with_passes, sphere_hit)
 from platelight.addon.exr_io import read_exr, write_exr
 from platelight.addon.ibl.equirect import texel_directions
@@ -262,3 +262,52 @@ def test_denoised_cg_keeps_its_edge_pixels_raw(bpy_clean, tmp_path):
     assert edge.sum() > 20 and inside.sum() > 200
     np.testing.assert_allclose(passes["CG"][..., :3][edge], rendered[..., :3][edge], atol=1e-6)
     assert np.abs(passes["CG"][..., :3][inside] - rendered[..., :3][inside]).max() > 1e-3   # denoised
+
+
+def test_metals_are_path_traced_in_cycles_unless_asked_for_the_sbrdf(bpy_clean, tmp_path):
+    """setup_composite's default shows Cycles' camera an SBRDF metal's Principled twin, path-traced
+    (more accurate at equal time, docs/decisions.md): unbaked, the sphere renders as its source
+    material did, where the SBRDF without maps renders black. ``metals='SBRDF'`` gives back the
+    paper's shading; a dielectric SBRDF keeps it; EEVEE always shows the SBRDF."""
+    bpy = bpy_clean
+    sm = importlib.import_module(f"{support.EXT_MODULE}.node_groups.sbrdf_material")
+    ray_twin = importlib.import_module(f"{support.EXT_MODULE}.node_groups.ray_twin")
+    scene, _plate = build_scene(bpy, tmp_path, "CATCHER", samples=16)
+    sphere = scene.objects["Sphere"]
+    sphere.data.materials.append(metal_material("Copper", (0.8, 0.5, 0.3), 0.3))
+    ground, origin, rays = ground_points(bpy, scene)
+    inside = inner(sphere_hit(origin, rays))
+
+    def cg():
+        assert bpy.ops.platelight.setup_composite(method="CATCHER", samples=16) == {"FINISHED"}
+        folder = tmp_path / f"render_{len(list(tmp_path.glob('render_*')))}"
+        folder.mkdir()
+        _out, passes = render_with_passes(bpy, scene, folder)
+        return passes["CG"][..., :3][inside].mean(axis=-1)
+
+    principled = cg()
+    assert principled.mean() > 0.05
+    material = sm.apply_sbrdf_material(sphere)          # no probe baked: its SBRDF would be black
+    assert sm.is_metal(material)
+    twin = cg()
+    assert not ray_twin.camera_sees_sbrdf(material)
+    assert not sm.shaded_by_sbrdf(sphere)               # so its CG is denoised, as a path-traced one
+    # the same Principled values path-traced with the same seed: measured equal (difference 0.0)
+    assert np.abs(twin - principled).mean() < 0.01 * principled.mean()
+    assert bpy.ops.platelight.setup_composite(method="CATCHER", samples=16, metals="SBRDF") == {"FINISHED"}
+    assert ray_twin.camera_sees_sbrdf(material)
+    folder = tmp_path / "sbrdf"
+    folder.mkdir()
+    _out, passes = render_with_passes(bpy, scene, folder)
+    assert passes["CG"][..., :3][inside].mean() < 0.1 * principled.mean()     # the unbaked SBRDF
+    # EEVEE shows the SBRDF (where this machine has no GL context it says so and takes Cycles)
+    assert bpy.ops.platelight.setup_composite(method="CATCHER", engine="EEVEE") == {"FINISHED"}
+    assert ray_twin.camera_sees_sbrdf(material) == (scene.render.engine != "CYCLES")
+    # a dielectric keeps the SBRDF under the default
+    plastic = compat().new_material("Plastic")
+    compat().node_tree(plastic).nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.3
+    sphere.material_slots[0].material = plastic
+    dielectric = sm.apply_sbrdf_material(sphere)
+    assert not sm.is_metal(dielectric)
+    assert bpy.ops.platelight.setup_composite(method="CATCHER", samples=16) == {"FINISHED"}
+    assert ray_twin.camera_sees_sbrdf(dielectric) and sm.shaded_by_sbrdf(sphere)

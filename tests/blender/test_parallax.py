@@ -86,7 +86,8 @@ def test_mirror_reflects_the_box_where_path_tracing_does(bpy_clean, tmp_path, st
 
         bench.render = render
         try:
-            image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf", 2,
+            # the SBRDF pinned: a metal's default in Cycles is its path-traced twin (session 29)
+            image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf_sbrdf", 2,
                                           tmp_path / f"{variant}.exr", camera=CAMERA, box=bench.BOX)
         finally:
             bench.render = original
@@ -267,7 +268,8 @@ def test_matte_ball_diffuse_parallax_is_closer_to_path_tracing(bpy_clean, tmp_pa
         bench.sbrdf_sphere = bake
         out = tmp_path / f"diffuse_parallax_{parallax}.exr"
         try:
-            image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf", 2, out)
+            # the SBRDF pinned: a metal's default in Cycles is its path-traced twin (session 29)
+            image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf_sbrdf", 2, out)
         finally:
             bench.sbrdf_sphere = original
         folder = tmp_path / f"diffuse_parallax_{parallax}_probes" / "Sphere"

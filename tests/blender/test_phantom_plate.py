@@ -12,7 +12,7 @@ import support  # noqa: F401
 from support import compat
 from platelight.addon.compositing import lens
 from platelight.addon.exr_io import read_exr, write_exr
-from composite_scene import render_with_passes
+from composite_scene import metal_material, render_with_passes
 
 W, H = 160, 120
 
@@ -160,12 +160,7 @@ def test_chrome_sphere_reflects_the_real_floor(bpy_clean, tmp_path, surface):
     bpy.ops.mesh.primitive_uv_sphere_add(radius=RADIUS, location=tuple(CENTRE), segments=64, ring_count=32)
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
-    chrome = compat().new_material("Chrome")
-    bsdf = compat().node_tree(chrome).nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (1, 1, 1, 1)
-    bsdf.inputs["Metallic"].default_value = 1.0
-    bsdf.inputs["Roughness"].default_value = 0.0
-    sphere.data.materials.append(chrome)
+    sphere.data.materials.append(metal_material("Chrome", (1, 1, 1), 0.0))
     scene.platelight.phantom_surface = surface
     assert bpy.ops.platelight.setup_composite(samples=16) == {"FINISHED"}
     out, passes = render_with_passes(bpy, scene, tmp_path)
