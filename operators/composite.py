@@ -103,9 +103,10 @@ def configure_eevee(scene):
 
 
 # What Cycles' camera sees of an SBRDF metal. Path-traced, the metal over the same baked shadows
-# reached the catcher's object PSNR 4.2-4.7x sooner at 960x540, where its SBRDF stopped at 38.2 dB
-# (glossy copper; the catcher 42.2) or matched it at the same samples (mirror): anti-aliasing, not
-# shading, sets a metal's cost (docs/decisions.md, "Metals path-traced, the SBRDF for the rest")
+# reached the catcher's object PSNR 4.1-4.4x sooner at 960x540 (mirror, glossy, anisotropic and
+# rough metal), where its SBRDF stopped at 38.2 dB (glossy copper; the catcher 42.2) or matched it
+# at the same samples at more cost a sample (mirror): anti-aliasing, not shading, sets a metal's
+# cost (docs/decisions.md, "Metals path-traced, the SBRDF for the rest")
 METAL_SHADINGS = (("PATH_TRACED", "Path-Traced", "The Principled material the SBRDF was converted from "
                    "(its twin), path-traced and denoised: the more accurate at equal time"),
                   ("SBRDF", "SBRDF", "The paper's probe-shaded SBRDF, noise-free at one sample"))

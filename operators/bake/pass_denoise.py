@@ -45,7 +45,7 @@ def denoise_pass(image, normal, cycles, out_path):
     The guides are never prefiltered, whatever the scene's prefilter: a constant albedo and the
     first-hit normal of the phantoms have no noise to take out. Cycles' default (Accurate) ran OIDN
     twice more for the same ratio (shadow PSNR 43.4700 against 43.4701 at 512 x 16; denoise 4.0
-    against 1.3 s; docs/bench/shadow_bake_denoiser_960x540.md)."""
+    against 1.3 s; docs/decisions.md, "The shadow bake's diffuse bounces, its guides unfiltered")."""
     height, width = image.shape[:2]
     scene = bpy.data.scenes.new(names.PASS_DENOISE)
     images = []
