@@ -111,17 +111,18 @@ def camera_sees_sbrdf(material) -> bool:
 
 
 def has_ray_split(material) -> bool:
+    """Was the material wired by wire_twin (its Light Path and ray split there)?"""
     return material.node_tree is not None and SPLIT_NODE in material.node_tree.nodes \
         and LIGHT_PATH_NODE in material.node_tree.nodes
 
 
 def set_camera_sees_sbrdf(material, value: bool) -> None:
     """Give the camera the SBRDF (True) or the Principled twin (False)."""
-    tree = material.node_tree
-    split, path = tree.nodes.get(SPLIT_NODE), tree.nodes.get(LIGHT_PATH_NODE)
-    if split is None or path is None:
+    if not has_ray_split(material):
         raise ValueError(f"{material.name} has no PlateLight ray split (not an SBRDF material)")
-    _camera_switch(tree, path, split).inputs[1].default_value = 1.0 if value else 0.0
+    nodes = material.node_tree.nodes
+    camera = _camera_switch(material.node_tree, nodes[LIGHT_PATH_NODE], nodes[SPLIT_NODE])
+    camera.inputs[1].default_value = 1.0 if value else 0.0
 
 
 def material_output(tree):

@@ -201,14 +201,28 @@ def composite(bpy, hdri_path, material, plate_path, route, samples, out_path, ca
         assert bpy.ops.platelight.lights_from_probe(mode="LIGHTS", count=16) == {"FINISHED"}
     elif route == "sunsky":
         assert bpy.ops.platelight.lights_from_probe(mode="SUN_SKY") == {"FINISHED"}
-    elif route.startswith("sbrdf"):
-        bake_s = sbrdf_sphere(bpy, scene, sphere, out_path, paper=route == "sbrdf_paper", route=route)
-        bake_s += bake_route_shadows(bpy, route)
+    else:
+        bake_s = bake_route(bpy, scene, sphere, route, out_path)
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(**setup_arguments(route, samples)) == {"FINISHED"}
     setup = time.perf_counter() - t0 - bake_s
     image, render_time = render(bpy, scene, out_path)
     return image, bake_s, setup + render_time
+
+
+def maps_folder(out_path):
+    """Where a route rendering ``out_path`` keeps its probes and baked shadows."""
+    return str(pathlib.Path(out_path).with_suffix("")) + "_probes"
+
+
+def bake_route(bpy, scene, sphere, route, out_path):
+    """The route's bakes, into maps_folder(out_path): the sphere's SBRDF and probe for the sbrdf
+    routes, the shot's shadows for the baked ones; their seconds."""
+    scene.platelight.maps_dir = maps_folder(out_path)
+    bake_s = 0.0
+    if route.startswith("sbrdf"):
+        bake_s = sbrdf_sphere(bpy, scene, sphere, out_path, paper=route == "sbrdf_paper", route=route)
+    return bake_s + bake_route_shadows(bpy, route)
 
 
 def bake_route_shadows(bpy, route):
@@ -235,7 +249,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False, route="sbrdf"):
     instead of PlateLight's defaults. Returns the seconds the bake took."""
     from bl_ext.dev.platelight.node_groups import ray_twin, sbrdf_material
 
-    scene.platelight.maps_dir = str(pathlib.Path(out_path).with_suffix("")) + "_probes"
+    scene.platelight.maps_dir = maps_folder(out_path)
     scene.platelight.probe_owner_shadows = not paper
     scene.platelight.probe_sun_lobe = not paper        # the paper's maps hold their sun
     # the product's default (View-Dependent GGX) unless the route names the lobes; the paper's are Phong
@@ -429,12 +443,7 @@ def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, ou
         scene.objects["Box"].platelight.phantom = True
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    bake_s = 0.0
-    if route.startswith("sbrdf"):
-        bake_s = sbrdf_sphere(bpy, scene, sphere, out_dir / "frame", paper=route == "sbrdf_paper", route=route)
-    if route in BAKED_ROUTES:
-        scene.platelight.maps_dir = str(out_dir / "frame_probes")     # the sbrdf routes set it too
-        bake_s += bake_route_shadows(bpy, route)
+    bake_s = bake_route(bpy, scene, sphere, route, out_dir / "frame")
     assert bpy.ops.platelight.setup_plate(filepath=str(plate_path)) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(**setup_arguments(route, samples)) == {"FINISHED"}
     setup_s = time.perf_counter() - t0 - bake_s

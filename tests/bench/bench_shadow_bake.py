@@ -62,6 +62,7 @@ def main(out_dir: pathlib.Path) -> None:
     truths, plates, plate_path = bc.shot_truths(bpy, hdri, SCENE, material, box, bc.CACHE / bc.SIZE)
     bc.build(bpy, hdri, material, bc.shot_camera(bc.SHOT_FRAMES, box), None)
     obj, shadow = bc.masks(truths[-1], plates[-1])
+    plate_luminance = plates[-1].mean(axis=-1)
     peak = float(np.percentile(truths[-1], 99.5))
     renders = []
 
@@ -108,13 +109,12 @@ def main(out_dir: pathlib.Path) -> None:
         images, bake_s, _setup_s, _seconds = bc.composite_shot(bpy, hdri, material, box, "sbrdf_baked", 1,
                                                                plate_path, bc.CACHE / bc.SIZE / tag)
         image = images[-1]
-        lum = plates[-1].mean(axis=-1)
         row = dict(method=method, height=height, samples=samples, denoiser=", ".join(
             v for v in (prefilter and f"prefilter {prefilter.title()}", passes and f"input {passes}",
                         quality and f"quality {quality.title()}") if v) or "Cycles' defaults",
             bounces=min(4, bounces or default_bounces), bake_s=bake_s, renders=[round(r, 1) for r in renders],
             shadow=bc.psnr(image, truths[-1], shadow, peak), object=bc.psnr(image, truths[-1], obj, peak),
-            bias=float(np.mean(((image.mean(axis=-1) - truths[-1].mean(axis=-1)) / lum)[shadow])))
+            bias=float(np.mean(((image.mean(axis=-1) - truths[-1].mean(axis=-1)) / plate_luminance)[shadow])))
         rows.append(row)
         print(row, flush=True)
     write_report(out_dir, rows)
