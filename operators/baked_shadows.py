@@ -101,8 +101,10 @@ def shadows_hash(scene, height, samples, method, denoiser) -> str:
     """The content hash of what the shadow panorama depends on: the world, every renderable
     object (place, shape, materials, visibility), the bake's settings and Cycles' bounces. A
     phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
-    the ratio, and the plate-albedo material is remade at every composite set-up."""
-    describer = Describer()
+    the ratio, and the plate-albedo material is remade at every composite set-up. The bake hides
+    the CG from its camera, so what Cycles' camera sees of an SBRDF metal (setup_composite's
+    Metals) is left out too: switching it must not make a bake stale."""
+    describer = Describer(camera_blind=True)
     frame = scene.frame_current
 
     def digest(ob):

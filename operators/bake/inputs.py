@@ -53,9 +53,11 @@ def _image_description(image):
             "source": image.source, "colorspace": image.colorspace_settings.name}
 
 
-def describe_tree(tree, seen=None):
+def describe_tree(tree, seen=None, camera_blind=False):
     """Everything in a node tree that changes its result: nodes' settings, unlinked input values,
-    images (with file modification time), links, and nested groups."""
+    images (with file modification time), links, and nested groups. ``camera_blind``: leave out
+    what only camera rays see (the SBRDF/twin switch of names.RAY_CAMERA_NODE), for a render that
+    hides the object from its camera."""
     if tree is None:
         return None
     seen = set() if seen is None else seen
@@ -64,6 +66,8 @@ def describe_tree(tree, seen=None):
     seen.add(tree.name)
     nodes = []
     for node in tree.nodes:
+        if camera_blind and node.name == names.RAY_CAMERA_NODE:
+            continue
         inputs = {}
         for sock in node.inputs:
             if not sock.is_linked and hasattr(sock, "default_value"):
@@ -73,7 +77,7 @@ def describe_tree(tree, seen=None):
         if getattr(node, "image", None) is not None:
             entry["image"] = _image_description(node.image)
         if getattr(node, "node_tree", None) is not None:
-            entry["group"] = describe_tree(node.node_tree, seen)
+            entry["group"] = describe_tree(node.node_tree, seen, camera_blind)
         nodes.append(entry)
     links = [(l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
              for l in tree.links if not l.is_muted]
@@ -82,9 +86,11 @@ def describe_tree(tree, seen=None):
 
 class Describer:
     """Plain-data descriptions of objects for the content hash, memoised per data block for the
-    duration of one bake (a mesh shared by many objects is read once)."""
+    duration of one bake (a mesh shared by many objects is read once). ``camera_blind``: materials
+    described as rays other than the camera's meet them (describe_tree)."""
 
-    def __init__(self):
+    def __init__(self, camera_blind=False):
+        self.camera_blind = camera_blind
         self._data = {}
         self._materials = {}
         self._digests = {}
@@ -143,7 +149,7 @@ class Describer:
         if mat is None:
             return None
         if mat.name_full not in self._materials:
-            self._materials[mat.name_full] = {"name": mat.name_full, "tree": describe_tree(mat.node_tree),
+            self._materials[mat.name_full] = {"name": mat.name_full, "tree": describe_tree(mat.node_tree, camera_blind=self.camera_blind),
                                               "diffuse": list(mat.diffuse_color)}
         return self._materials[mat.name_full]
 

@@ -6,12 +6,15 @@ an infinite floor takes away the form factor of a sphere from each floor point, 
 to 1 − r² h / D³ of what it was. Nothing else is in the scene to bounce light."""
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
 import composite_scene as cs
 from bake_scenes import probe_renders
 from platelight.addon.exr_io import read_exr
+import support
 from support import compat
 
 R, HEIGHT = 0.5, 1.0        # the ball floats: its bottom 0.5 m above the floor
@@ -338,3 +341,30 @@ def test_a_catcher_bake_below_four_samples_warns(bpy_clean, tmp_path):
         "or with the Two Renders method."]
     summary = baked_shadows.bake_shadows(bpy.context, height=16, samples=1, method="TWO_RENDERS")
     assert not [w for w in summary["warnings"] if "grainy" in w]
+
+
+def test_what_the_camera_sees_of_a_metal_leaves_the_bake_current(bpy_clean, tmp_path, capfd):
+    """The bake hides the CG from its camera, so setup_composite's Metals switch (the camera sees a
+    metal's SBRDF or its path-traced twin) cannot change the ratio: the bake stays current and the
+    default method keeps taking it (it fell back to the catcher once the switch was flipped)."""
+    bpy = bpy_clean
+    sm = importlib.import_module(f"{support.EXT_MODULE}.node_groups.sbrdf_material")
+    ray_twin = importlib.import_module(f"{support.EXT_MODULE}.node_groups.ray_twin")
+    baked = importlib.import_module(f"{support.EXT_MODULE}.operators.baked_shadows")
+    scene, _floor, ball = floating_black_ball(bpy, tmp_path, save=False)
+    ball.material_slots[0].material = cs.metal_material("Chrome", (0.9, 0.9, 0.9), 0.0)
+    material = sm.apply_sbrdf_material(ball)
+    assert sm.is_metal(material) and ray_twin.camera_sees_sbrdf(material)
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=4) == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.platelight.setup_composite() == {"FINISHED"}       # Cycles: the metal path-traced
+    said = capfd.readouterr().out
+    assert not ray_twin.camera_sees_sbrdf(material)
+    assert "(baked, cycles)" in said and "do not match" not in said, said
+    for value in (True, False):
+        ray_twin.set_camera_sees_sbrdf(material, value)
+        assert baked.baked_is_current(scene)
+    # what other rays meet still counts: the twin's colour lights the floor
+    compat().node_tree(material).nodes[ray_twin.TWIN_NODE].inputs["Base Color"].default_value = (0.1, 0.9, 0.1, 1.0)
+    assert not baked.baked_is_current(scene)
