@@ -15,7 +15,8 @@ PLATELIGHT_BENCH_DEVICE=GPU, PLATELIGHT_BENCH_GPU_BACKEND=CUDA (the backend; def
 OptiX, CUDA, HIP, oneAPI, Metal with a device), PLATELIGHT_BENCH_LOAD_NOTE (a sentence on the machine's load),
 PLATELIGHT_BENCH_EXTRA=layered,ggx (the layered route, the GGX glossy lobes), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
 subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
-2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_ROWS (the rows file's name beside the report; default <report>_rows.json,
+2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_SPP=64
+(only these sample counts, of every route), PLATELIGHT_BENCH_ROWS (the rows file's name beside the report; default <report>_rows.json,
 published with it so anyone can re-plot or extend it), PLATELIGHT_BENCH_KEEP_ROWS=1 (re-run a
 subset: the rows file's other rows stay, a re-run row replaces its old one, and the report covers
 them all).
@@ -348,7 +349,7 @@ SHOT_SCENES = {       # in the order they run: a run stopped early reports what 
     "diffuse": ("diffuse", False), "anisotropic": ("anisotropic", False),
     "rough metal": ("rough metal", False),
 }
-SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_baked", (1, 4, 16)),
+SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_baked", (1, 4, 16, 64)),
                ("platelight eevee", "sbrdf_eevee", (4,)),
                ("platelight eevee baked", "sbrdf_eevee_baked", (4,)),
                ("platelight (paper)", "sbrdf_paper", (16,)), ("catcher", "cycles", (2, 4, 16, 64, 256)))
@@ -524,11 +525,14 @@ def main(out_dir: pathlib.Path) -> None:
         extra = [EXTRA_ROUTES[k] for k in os.environ.get("PLATELIGHT_BENCH_EXTRA", "").split(",") if k]
         keys = os.environ.get("PLATELIGHT_BENCH_ROUTES")          # e.g. "sbrdf_layered": a subset
         catcher_spp = os.environ.get("PLATELIGHT_BENCH_CATCHER_SPP")   # e.g. "16,64": a subset
+        only_spp = os.environ.get("PLATELIGHT_BENCH_SPP")              # e.g. "64": every route's subset
         for route, key, sample_counts in (*SHOT_ROUTES, *extra):
             if keys and key not in keys.split(","):
                 continue
             if key == "cycles" and catcher_spp:
                 sample_counts = tuple(int(v) for v in catcher_spp.split(","))
+            if only_spp:
+                sample_counts = tuple(n for n in sample_counts if str(n) in only_spp.split(","))
             for samples in sample_counts:
                 tag = f"{name.replace(' + ', '_')}_{key}_{samples}"
                 images, bake_s, setup_s, seconds = composite_shot(

@@ -362,9 +362,21 @@ def test_what_the_camera_sees_of_a_metal_leaves_the_bake_current(bpy_clean, tmp_
     said = capfd.readouterr().out
     assert not ray_twin.camera_sees_sbrdf(material)
     assert "(baked, cycles)" in said and "do not match" not in said, said
+    # a path-traced CG converges: its layer's automatic samples, adaptive sampling stopping clean pixels
+    assert "the CG at 64 samples" in said and scene.cycles.use_adaptive_sampling
+    assert scene.view_layers["PlateLight CG"].samples == 64
     for value in (True, False):
         ray_twin.set_camera_sees_sbrdf(material, value)
         assert baked.baked_is_current(scene)
     # what other rays meet still counts: the twin's colour lights the floor
     compat().node_tree(material).nodes[ray_twin.TWIN_NODE].inputs["Base Color"].default_value = (0.1, 0.9, 0.1, 1.0)
     assert not baked.baked_is_current(scene)
+    # a noise-free SBRDF needs only its edges anti-aliased: 4 samples
+    plastic = compat().new_material("Plastic")
+    compat().node_tree(plastic).nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.6
+    ball.material_slots[0].material = plastic
+    assert not sm.is_metal(sm.apply_sbrdf_material(ball))
+    capfd.readouterr()
+    assert bpy.ops.platelight.setup_composite(method="BAKED") == {"FINISHED"}
+    assert "the CG at 4 samples" in capfd.readouterr().out
+    assert scene.view_layers["PlateLight CG"].samples == 4

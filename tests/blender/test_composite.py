@@ -49,6 +49,8 @@ def test_plate_unchanged_wherever_render_says_untouched_full_light_paths(bpy_cle
     scene, plate = build_scene(bpy, tmp_path, method)
     assert bpy.ops.platelight.setup_composite(method=method, samples=16, denoise_shadows=denoise,
                                               ratio_form=ratio) == {"FINISHED"}
+    # adaptive sampling stops clean pixels, except where two renders' difference must cancel
+    assert scene.cycles.use_adaptive_sampling == (method != "DIFFERENTIAL")
     out, passes = render_with_passes(bpy, scene, tmp_path)
     # Shadows is the ratio, or (With − Without) + 1 in the additive form: 1 means untouched
     free = (passes["CG"][..., 3] == 0) & np.all(passes["Shadows"][..., :3] == 1, axis=2)
