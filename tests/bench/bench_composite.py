@@ -16,7 +16,7 @@ OptiX, CUDA, HIP, oneAPI, Metal with a device), PLATELIGHT_BENCH_LOAD_NOTE (a se
 PLATELIGHT_BENCH_EXTRA=layered,ggx (the layered route, the GGX glossy lobes), PLATELIGHT_BENCH_ROUTES=sbrdf,cycles (a
 subset of route keys), PLATELIGHT_BENCH_CATCHER_SPP=16,64 (the catcher's sample counts; default
 2,4,16,64,256: 2 and 4 are the equal-time points of PlateLight's routes), PLATELIGHT_BENCH_SPP=64
-(only these sample counts, of every route), PLATELIGHT_BENCH_ROWS (the rows file's name beside the report; default <report>_rows.json,
+(every other route's sample counts, instead of its own), PLATELIGHT_BENCH_ROWS (the rows file's name beside the report; default <report>_rows.json,
 published with it so anyone can re-plot or extend it), PLATELIGHT_BENCH_KEEP_ROWS=1 (re-run a
 subset: the rows file's other rows stay, a re-run row replaces its old one, and the report covers
 them all).
@@ -525,14 +525,14 @@ def main(out_dir: pathlib.Path) -> None:
         extra = [EXTRA_ROUTES[k] for k in os.environ.get("PLATELIGHT_BENCH_EXTRA", "").split(",") if k]
         keys = os.environ.get("PLATELIGHT_BENCH_ROUTES")          # e.g. "sbrdf_layered": a subset
         catcher_spp = os.environ.get("PLATELIGHT_BENCH_CATCHER_SPP")   # e.g. "16,64": a subset
-        only_spp = os.environ.get("PLATELIGHT_BENCH_SPP")              # e.g. "64": every route's subset
+        only_spp = os.environ.get("PLATELIGHT_BENCH_SPP")              # e.g. "64": every other route's, instead
         for route, key, sample_counts in (*SHOT_ROUTES, *extra):
             if keys and key not in keys.split(","):
                 continue
             if key == "cycles" and catcher_spp:
                 sample_counts = tuple(int(v) for v in catcher_spp.split(","))
-            if only_spp:
-                sample_counts = tuple(n for n in sample_counts if str(n) in only_spp.split(","))
+            elif only_spp:
+                sample_counts = tuple(int(v) for v in only_spp.split(","))
             for samples in sample_counts:
                 tag = f"{name.replace(' + ', '_')}_{key}_{samples}"
                 images, bake_s, setup_s, seconds = composite_shot(
