@@ -125,7 +125,8 @@ def set_camera_shading(objects, engine, metals):
 # The CG layer's automatic samples (Layered and Baked Shadows). Noise-free SBRDF objects need
 # only their edges anti-aliased; in Cycles a path-traced one (or an SBRDF's sharp reflection)
 # converges: at 960x540 a path-traced mirror gave 42.0 dB at 16 samples, 42.8 at 32, 43.3 at 64
-# (the catcher's at 64), adaptive sampling stopping the clean pixels (docs/decisions.md, "Adaptive sampling, and the CG layer's samples")
+# (the catcher's at 64), adaptive sampling stopping the clean pixels (docs/decisions.md,
+# "Adaptive sampling, and the CG layer's samples")
 SMOOTH_CG_SAMPLES, PATH_TRACED_CG_SAMPLES = 4, 64
 # Adaptive sampling's first check. Cycles' automatic minimum (0) saved nothing at 64 samples
 # (9.4 s against 9.2); 2, 4 and 8 gave the same image and time (5.3 s)
@@ -356,9 +357,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                         "for real surfaces as Phantom).")
         else:
             layer = f", the CG at {cg_samples} samples" if method in ("LAYERED", "BAKED") else ""
-            self.report({"INFO"}, f"Composite set up ({method.lower()}, {engine.lower()}): {len(cg)} CG object(s) "
-                        f"({len(noisy)} path-traced or with a sharp reflection{layer}), {len(phantoms)} phantom(s), "
-                        f"plate '{plate_image.name}'.")
+            self.report({"INFO"}, f"Composite set up ({method.lower()}, {engine.lower()}): "
+                        f"{len(cg)} CG object(s) ({len(noisy)} path-traced or with a sharp "
+                        f"reflection{layer}), {len(phantoms)} phantom(s), plate '{plate_image.name}'.")
         return {"FINISHED"}
 
 

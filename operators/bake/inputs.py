@@ -149,7 +149,8 @@ class Describer:
         if mat is None:
             return None
         if mat.name_full not in self._materials:
-            self._materials[mat.name_full] = {"name": mat.name_full, "tree": describe_tree(mat.node_tree, camera_blind=self.camera_blind),
+            tree = describe_tree(mat.node_tree, camera_blind=self.camera_blind)
+            self._materials[mat.name_full] = {"name": mat.name_full, "tree": tree,
                                               "diffuse": list(mat.diffuse_color)}
         return self._materials[mat.name_full]
 
