@@ -103,8 +103,8 @@ def configure_eevee(scene):
 
 
 # What Cycles' camera sees of an SBRDF metal. Path-traced, the metal over the same baked shadows
-# reached the catcher's object PSNR 4.1-4.4x sooner at 960x540 (mirror, glossy, anisotropic and
-# rough metal), where its SBRDF stopped at 38.2 dB (glossy copper; the catcher 42.2) or matched it
+# reached the catcher's object PSNR 4.1-4.4x sooner at 960x540 at 4 CG samples (mirror, glossy,
+# anisotropic and rough metal; 6.9-9.5x at the automatic 64 with adaptive sampling), where its SBRDF stopped at 38.2 dB (glossy copper; the catcher 42.2) or matched it
 # at the same samples at more cost a sample (mirror): anti-aliasing, not shading, sets a metal's
 # cost (docs/decisions.md, "Metals path-traced, the SBRDF for the rest")
 METAL_SHADINGS = (("PATH_TRACED", "Path-Traced", "The Principled material the SBRDF was converted from "

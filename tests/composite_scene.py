@@ -74,14 +74,20 @@ def add_sun(bpy, scene, direction=SUN_DIR, strength=4.0):
     return sun
 
 
-def metal_material(name, colour, roughness):
-    """A new Principled metal (Metallic 1) of that base colour and roughness."""
+def principled_material(name, roughness, colour=None, metallic=0.0):
+    """A new Principled material of that roughness and metallic (base colour: Blender's, unless given)."""
     material = compat().new_material(name)
     bsdf = compat().node_tree(material).nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
-    bsdf.inputs["Metallic"].default_value = 1.0
+    if colour is not None:
+        bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
+    bsdf.inputs["Metallic"].default_value = metallic
     bsdf.inputs["Roughness"].default_value = roughness
     return material
+
+
+def metal_material(name, colour, roughness):
+    """A new Principled metal (Metallic 1) of that base colour and roughness."""
+    return principled_material(name, roughness, colour, metallic=1.0)
 
 
 def grey_world(bpy, scene, value=0.15):

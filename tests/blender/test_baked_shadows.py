@@ -372,9 +372,7 @@ def test_what_the_camera_sees_of_a_metal_leaves_the_bake_current(bpy_clean, tmp_
     compat().node_tree(material).nodes[ray_twin.TWIN_NODE].inputs["Base Color"].default_value = (0.1, 0.9, 0.1, 1.0)
     assert not baked.baked_is_current(scene)
     # a noise-free SBRDF needs only its edges anti-aliased: 4 samples
-    plastic = compat().new_material("Plastic")
-    compat().node_tree(plastic).nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.6
-    ball.material_slots[0].material = plastic
+    ball.material_slots[0].material = cs.principled_material("Plastic", 0.6)
     assert not sm.is_metal(sm.apply_sbrdf_material(ball))
     capfd.readouterr()
     assert bpy.ops.platelight.setup_composite(method="BAKED") == {"FINISHED"}

@@ -12,7 +12,7 @@ import support
 from support import compat
 from composite_scene import (H, SPHERE_C, SPHERE_R, W, add_camera, add_plane, add_sphere, add_sun,  # noqa: F401
                              build_scene, grey_world, ground_points, in_shadow, inner, metal_material, ops_module,
-                             random_plate, render, render_with_passes, sphere_hit)
+                             principled_material, random_plate, render, render_with_passes, sphere_hit)
 from platelight.addon.exr_io import read_exr, write_exr
 from platelight.addon.ibl.equirect import texel_directions
 
@@ -306,9 +306,7 @@ def test_metals_are_path_traced_in_cycles_unless_asked_for_the_sbrdf(bpy_clean, 
     assert bpy.ops.platelight.setup_composite(method="CATCHER", engine="EEVEE") == {"FINISHED"}
     assert ray_twin.camera_sees_sbrdf(material) == (scene.render.engine != "CYCLES")
     # a dielectric keeps the SBRDF under the default
-    plastic = compat().new_material("Plastic")
-    compat().node_tree(plastic).nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.3
-    sphere.material_slots[0].material = plastic
+    sphere.material_slots[0].material = principled_material("Plastic", 0.3)
     dielectric = sm.apply_sbrdf_material(sphere)
     assert not sm.is_metal(dielectric)
     assert bpy.ops.platelight.setup_composite(method="CATCHER", samples=16) == {"FINISHED"}
