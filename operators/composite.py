@@ -129,7 +129,8 @@ def set_camera_shading(objects, engine, metals):
 # "Adaptive sampling, and the CG layer's samples")
 SMOOTH_CG_SAMPLES, PATH_TRACED_CG_SAMPLES = 4, 64
 # Adaptive sampling's first check. Cycles' automatic minimum (0) saved nothing at 64 samples
-# (9.4 s against 9.2); 2, 4 and 8 gave the same image and time (5.3 s)
+# (9.18 s against 9.16 off); 2, 4 and 8 gave the same image in 5.2-5.3 s
+# (docs/bench/cg_layer_mirror_960x540.md)
 ADAPTIVE_MIN_SAMPLES = 4
 
 

@@ -553,6 +553,16 @@ def main(out_dir: pathlib.Path) -> None:
         write_report(out_dir, rows)          # after each scene: a long run reports what it has
 
 
+def write_table(out_dir, stem, title, doc, script, header, lines):
+    """docs/bench/<stem>.md of a benchmark that reuses this one's scene: its title, the second
+    paragraph of its docstring ``doc``, who produced it and the load, then the table."""
+    text = [title, "", " ".join(doc.split("\n\n")[1].split()), "",
+            f"Produced by `tests/bench/{script}`; load average when it finished: {os.getloadavg()[0]:.1f}.", "",
+            *header, *lines]
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / f"{stem}.md").write_text("\n".join(text) + "\n")
+
+
 def _put_row(rows, row):
     """Replace the row of the same scene, route and samples (a re-run), else append."""
     same = [i for i, r in enumerate(rows)

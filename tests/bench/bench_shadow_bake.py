@@ -123,18 +123,16 @@ def main(out_dir: pathlib.Path) -> None:
 def write_report(out_dir, rows):
     stem = os.environ.get("PLATELIGHT_BENCH_SHADOW_STEM") or \
         ("shadow_bake" if bc.SIZE == "480x270" else f"shadow_bake_{bc.SIZE}")
-    lines = [f"# Shadow bake settings at {bc.SIZE.replace('x', '×')} (issue 11)", "",
-             " ".join(__doc__.split("\n\n")[1].split()), "",
-             f"Produced by `tests/bench/bench_shadow_bake.py`; load average when it finished: {os.getloadavg()[0]:.1f}.", "",
-             "| method | rows | spp | denoiser | diffuse bounces | bake (s) | renders (s) | PSNR shadow | shadow bias | PSNR object |",
-             "|---|---:|---:|---|---:|---:|---|---:|---:|---:|"]
+    header = ["| method | rows | spp | denoiser | diffuse bounces | bake (s) | renders (s) | PSNR shadow | shadow bias | PSNR object |",
+              "|---|---:|---:|---|---:|---:|---|---:|---:|---:|"]
+    lines = []
     for r in rows:
         method = {"TWO_RENDERS": "two renders", "CATCHER/CYCLES": "catcher, Cycles",
                   "CATCHER/COMPOSITOR": "catcher, compositor"}[r["method"]]
         lines.append(f"| {method} | {r['height']} | {r['samples']} | {r['denoiser']} | {r.get('bounces', 4)} | {r['bake_s']:.1f} | "
                      f"{' / '.join(f'{v:.1f}' for v in r['renders'])} | {r['shadow']:.2f} | {r['bias']:+.4f} | {r['object']:.2f} |")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    bc.write_table(out_dir, stem, f"# Shadow bake settings at {bc.SIZE.replace('x', '×')} (issue 11)", __doc__,
+                   "bench_shadow_bake.py", header, lines)
 
 
 if __name__ == "__main__":

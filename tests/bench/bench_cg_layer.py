@@ -1,0 +1,98 @@
+"""The CG layer's sampling (issue 11): where a path-traced CG layer's frame time goes, and what
+adaptive sampling, the denoiser and the bounces do to it (docs/decisions.md, "Adaptive sampling,
+and the CG layer's samples").
+
+The composite benchmark's scene (bench_composite.py: its shot, its cached 512-spp truth; `make
+bench` runs that benchmark first), the default baked route (the metal path-traced, the shadows
+baked once), set up once; then each row changes one setting of the CG layer and renders the shot's
+last frame twice, keeping the faster. *adaptive*: off, or on with Cycles' automatic minimum
+("auto") or the given minimum; *denoiser*: the compositor's OIDN on the CG where it covers the pixel
+(Set Up Composite's, at the given quality), Cycles' own with albedo and normal guides ("Cycles,
+guided", prefilter Fast), or none; *bounces*: the scene's, or diffuse/glossy/total caps. PSNR as in
+bench_composite (frame 24, peak the truth's 99.5th percentile). Timings on this 2-core machine vary
+by about 15 % between identical runs.
+
+Run: `PLATELIGHT_BENCH_SIZE=960x540 .venv/bin/python tests/bench/run_all.py --only cg_layer`
+(PLATELIGHT_BENCH_CG_SCENE=glossy for another scene; a few minutes once the truths are cached)."""
+from __future__ import annotations
+
+import importlib
+import os
+import pathlib
+import sys
+
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import bench_composite as bc  # noqa: E402
+
+SCENE = os.environ.get("PLATELIGHT_BENCH_CG_SCENE", "mirror")
+# (CG samples, adaptive minimum: None off / 0 Cycles' automatic / n, denoiser, bounces)
+ROWS = [(1, None, "none", None), (1, None, "High", None), (16, None, "High", None), (16, 4, "High", None),
+        (64, None, "High", None), (64, 0, "High", None), (64, 2, "High", None), (64, 4, "High", None),
+        (64, 8, "High", None), (16, None, "Fast", None), (16, None, "Balanced", None),
+        (16, None, "Cycles, guided", None), (16, None, "High", (2, 2, 4)), (64, 4, "High", (2, 2, 4)),
+        (256, 4, "High", None), (256, 4, "none", None)]
+
+
+def main(out_dir: pathlib.Path) -> None:
+    bc.W, bc.H = (int(v) for v in bc.SIZE.split("x"))
+    bpy = bc.conftest._import_bpy_with_extension()
+    importlib.import_module(f"{bc.support.EXT_MODULE}.node_groups.probe_maps").prepare_templates()
+    hdri = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{bc.HDRI}.exr")
+    material_name, box = bc.SHOT_SCENES[SCENE]
+    material = bc.MATERIALS[material_name]
+    truths, plates, plate_path = bc.shot_truths(bpy, hdri, SCENE, material, box, bc.CACHE / bc.SIZE)
+    bc.build(bpy, hdri, material, bc.shot_camera(bc.SHOT_FRAMES, box), bc.BOX if box else None)
+    obj, shadow = bc.masks(truths[-1], plates[-1])
+    peak = float(np.percentile(truths[-1], 99.5))
+    out = bc.CACHE / bc.SIZE / f"cg_layer_{SCENE.replace(' + ', '_')}"
+    bc.composite_shot(bpy, hdri, material, box, "sbrdf_baked", 16, plate_path, out)
+    scene = bpy.context.scene
+    cycles = scene.cycles
+    scene_bounces = (cycles.diffuse_bounces, cycles.glossy_bounces, cycles.max_bounces)
+    names = importlib.import_module(f"{bc.support.EXT_MODULE}.addon.names")
+    cg_layer = scene.view_layers[names.LAYER_CG]
+    denoise = next(n for n in bc.compat().compositor_tree(scene).nodes if n.bl_idname == "CompositorNodeDenoise"
+                   and n.inputs["Image"].links and n.inputs["Image"].links[0].from_node.layer == cg_layer.name)
+    rows = []
+    for samples, minimum, denoiser, bounces in ROWS:
+        cg_layer.samples = samples
+        cycles.use_adaptive_sampling = minimum is not None
+        cycles.adaptive_min_samples = minimum or 0
+        denoise.mute = denoiser in ("none", "Cycles, guided")
+        if not denoise.mute:
+            bc.compat().set_option(denoise, "Quality", denoiser)
+        cycles.use_denoising = denoiser == "Cycles, guided"
+        cycles.denoising_prefilter = "FAST"
+        cycles.denoising_input_passes = "RGB_ALBEDO_NORMAL"
+        for layer in scene.view_layers:
+            layer.cycles.use_denoising = layer == cg_layer
+        cycles.diffuse_bounces, cycles.glossy_bounces, cycles.max_bounces = bounces or scene_bounces
+        scene.frame_set(len(bc.RENDER_FRAMES))
+        seconds = []
+        for _ in range(2):
+            image, took = bc.render(bpy, scene, out / "row.exr")
+            seconds.append(took)
+        row = dict(samples=samples, adaptive="off" if minimum is None else ("auto" if minimum == 0 else minimum),
+                   denoiser=denoiser, bounces="/".join(map(str, bounces)) if bounces else "scene's",
+                   warm_s=min(seconds), object=bc.psnr(image, truths[-1], obj, peak),
+                   shadow=bc.psnr(image, truths[-1], shadow, peak),
+                   frame=bc.psnr(image, truths[-1], np.ones_like(obj), peak))
+        rows.append(row)
+        print(row, flush=True)
+    write_report(out_dir, rows)
+
+
+def write_report(out_dir, rows):
+    stem = f"cg_layer_{SCENE.replace(' + ', '_').replace(' ', '_')}_{bc.SIZE}"
+    header = ["| CG samples | adaptive (minimum) | denoiser | bounces | warm frame (s) | PSNR object | PSNR shadow | PSNR frame |",
+              "|---:|---|---|---|---:|---:|---:|---:|"]
+    lines = [f"| {r['samples']} | {r['adaptive']} | {r['denoiser']} | {r['bounces']} | {r['warm_s']:.2f} | "
+             f"{r['object']:.2f} | {r['shadow']:.2f} | {r['frame']:.2f} |" for r in rows]
+    bc.write_table(out_dir, stem, f"# The CG layer's sampling, {SCENE}, {bc.SIZE.replace('x', '×')} (issue 11)",
+                   __doc__, "bench_cg_layer.py", header, lines)
+
+
+if __name__ == "__main__":
+    main(bc.support.REPO / "docs" / "bench")
