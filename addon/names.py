@@ -42,6 +42,7 @@ LAYER_LOCAL = "PlateLight Local"
 LAYER_WITHOUT = "PlateLight Local Without"
 LAYER_SHADOWS = "PlateLight Shadows"        # the layered catcher's shadow layer (and the baked one)
 BAKED_SHADOW_MATERIAL = "PlateLight Baked Shadows"   # that layer's override in the baked method
+BAKED_RATIO_GROUP = "PlateLight Baked Ratio"   # the baked shadow ratio at a point (its material, the filmed phantoms)
 SHADOWS_FOLDER = "_shadows"                 # in the maps folder: the shot's baked shadow panorama
 SHADOW_BAKE_LAYER = "PlateLight Shadow Bake"   # the shadow bake's temporary view layer
 PASS_DENOISE = "PlateLight Pass Denoise"   # the temporary scene (and 5.x compositor group) that denoises one pass
@@ -59,6 +60,7 @@ REDISTORT_NODE = "PlateLight Redistort"     # label of the Map UV nodes after th
 PHANTOM_PLATE_MATERIAL = "PlateLight Phantom Plate"
 PHANTOM_ALBEDO_IMAGE = "PlateLight Phantom Albedo"   # plate / phantoms rendered white
 PHANTOM_WHITE_MATERIAL = "PlateLight Phantom White"  # the white override of that render
+PHANTOM_RADIANCE_IMAGE = "PlateLight Phantom Radiance"   # the plate where the camera saw a phantom (A: its distance)
 
 # --- lights, tracking, world probe, bake
 LIGHTS_COLLECTION = "PlateLight Lights"
@@ -78,4 +80,10 @@ PRESETS_CAMERA = "PlateLight Presets Camera"
 PLATE_FRAME_OFFSET_KEY = "platelight_frame_offset"   # on the plate image: file frame = scene frame + this
 LENS_KEY = "platelight_lens"   # on the scene: the calibrated lens {fx, fy, cx, cy, dist, width, height}
 KEPT_MATERIALS_KEY = "platelight_kept_materials"   # on a phantom: object-linked materials to give back
+# on a view layer: 1 where the phantoms show the CG's rays the filmed plate times the baked shadows
+FILMED_PHANTOMS_KEY = "platelight_filmed_phantoms"
+# on a view layer: 1 where it holds the phantoms out (the camera sees the plate through them there)
+HELD_OUT_PHANTOMS_KEY = "platelight_phantoms_held_out"
+# the view-layer switches of the phantoms' plate material, off in every bake's render
+PHANTOM_LAYER_KEYS = (FILMED_PHANTOMS_KEY, HELD_OUT_PHANTOMS_KEY)
 GRAIN_SETTINGS_KEY = "platelight_grain"   # on the grain image: {"amount", "level", "response"} measured

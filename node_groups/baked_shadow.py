@@ -4,14 +4,17 @@ panorama's centre to the shading point, so the layer's image is the shadow ratio
 would have given, with no path tracing (addon/compositing/baked_shadows.py).
 
 A point the panorama saw behind something nearer (a phantom's hidden side) is told apart by the
-panorama's distance map, as the probe's parallax search does: there it emits 1 (no change)."""
+panorama's distance map, as the probe's parallax search does: there it emits 1 (no change).
+
+The ratio lookup is a node group of its own (names.BAKED_RATIO_GROUP): the phantoms' plate
+material reads it too, to show the CG's rays the filmed plate shadowed (node_groups/phantom_plate.py)."""
 from __future__ import annotations
 
 import bpy
 
 from .. import compat
 from ..addon import names
-from ._build import Graph
+from ._build import Graph, io_nodes, shader_group, sync_interface
 
 # A point counts as the one the panorama saw when it lies no farther than this beyond the
 # distance stored for its direction (relative, plus an absolute 1 cm for texels at the horizon).
@@ -19,13 +22,22 @@ SEEN_TOLERANCE = 0.05
 SEEN_SLACK = 0.01
 
 
-def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.types.Material:
-    """The override material (made or rebuilt in place) reading ``ratio_path`` (ratio − 1, RGB) and
-    ``distance_path`` (radial distances), both panoramas centred at ``centre``."""
-    material = bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) or compat.new_material(names.BAKED_SHADOW_MATERIAL)
-    tree = compat.shader_tree(material)
+def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None = None, centre=None):
+    """The group (made or rebuilt in place, so materials using it follow a new bake) whose output
+    *Ratio* is 1 + (baked ratio − 1) at the shading point, read from ``ratio_path`` (ratio − 1, RGB)
+    and ``distance_path`` (radial distances), both panoramas centred at ``centre``. Without a
+    bake (no paths) it is 1 everywhere: no change. Only a bake rebuilds it; ``ensure_ratio_group``
+    returns the one there is."""
+    tree = shader_group(names.BAKED_RATIO_GROUP)
+    sync_interface(tree, [("OUTPUT", "Ratio", "NodeSocketColor", {})])
     tree.nodes.clear()
     g = Graph(tree)
+    _gin, gout = io_nodes(g)
+    if ratio_path is None:
+        one = g.node("ShaderNodeRGB")
+        one.outputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        g.link(one.outputs["Color"], gout.inputs["Ratio"])
+        return tree
     position = g.node("ShaderNodeNewGeometry").outputs["Position"]
     origin = g.node("ShaderNodeCombineXYZ")
     origin.name = origin.label = "Panorama Centre"
@@ -47,8 +59,27 @@ def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.ty
     reach = g.math("MULTIPLY_ADD", stored.outputs["Red"], 1.0 + SEEN_TOLERANCE, SEEN_SLACK)
     seen = g.math("LESS_THAN", g.vmath("LENGTH", offset), reach)
     change = g.vmath("SCALE", ratio_minus_one, scale=seen)
+    g.link(g.vmath("ADD", change, (1.0, 1.0, 1.0)), gout.inputs["Ratio"])
+    return tree
+
+
+def ensure_ratio_group():
+    """The baked ratio group as it is, or a neutral one (ratio 1) where nothing was baked yet."""
+    return bpy.data.node_groups.get(names.BAKED_RATIO_GROUP) or baked_ratio_group()
+
+
+def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.types.Material:
+    """The override material (made or rebuilt in place): it emits the baked ratio group's *Ratio*,
+    the group rebuilt for ``ratio_path``, ``distance_path`` and ``centre``."""
+    group = baked_ratio_group(ratio_path, distance_path, centre)
+    material = bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) or compat.new_material(names.BAKED_SHADOW_MATERIAL)
+    tree = compat.shader_tree(material)
+    tree.nodes.clear()
+    g = Graph(tree)
+    ratio = g.node("ShaderNodeGroup")
+    ratio.node_tree = group
     emit = g.node("ShaderNodeEmission")
-    g.link(g.vmath("ADD", change, (1.0, 1.0, 1.0)), emit.inputs["Color"])
+    g.link(ratio.outputs["Ratio"], emit.inputs["Color"])
     emit.inputs["Strength"].default_value = 1.0
     out = g.node("ShaderNodeOutputMaterial")
     g.link(emit.outputs["Emission"], out.inputs["Surface"])

@@ -87,6 +87,8 @@ def _configure_layer(layer, cg_coll, phantom_coll, cg_state, phantom_holdout):
     ph.exclude = False
     ph.holdout = phantom_holdout
     ph.indirect_only = False
+    # the phantoms' plate material gives camera rays a holdout without shading itself there
+    layer[names.HELD_OUT_PHANTOMS_KEY] = 1.0 if phantom_holdout else 0.0
     # other collections stay as they are: after the move they hold only lights, cameras,
     # empties and objects hidden from render, and the lights must keep lighting every layer
 
@@ -311,6 +313,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         cg_layer = _view_layer(scene, names.LAYER_CG)
         cg_layer.cycles.use_pass_shadow_catcher = method == "CATCHER"
         _configure_layer(cg_layer, cg_coll, phantom_coll, "visible", method != "CATCHER")
+        # with baked shadows the CG's rays see the filmed plate, shadowed, on the phantoms
+        # (node_groups/phantom_plate.py): no noise from path-tracing what the camera filmed
+        cg_layer[names.FILMED_PHANTOMS_KEY] = 1.0 if method == "BAKED" else 0.0
         if method == "DIFFERENTIAL":
             local_cg = "holdout" if engine == compat.EEVEE else "indirect"
             _configure_layer(_view_layer(scene, names.LAYER_LOCAL), cg_coll, phantom_coll, local_cg, False)

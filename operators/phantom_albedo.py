@@ -38,8 +38,9 @@ def _white(name=names.PHANTOM_WHITE_MATERIAL):
     return mat
 
 
-def _render_white(scene, view_layer, phantoms, path):
-    """The phantoms rendered white from the scene camera, without anything else: (H, W, 4)."""
+def _render_phantoms(scene, view_layer, phantoms, path, material, samples, denoise):
+    """The phantoms rendered with ``material`` from the scene camera, without anything else:
+    (H, W, 4)."""
     state = SceneState()
     try:
         for ob in scene.objects:
@@ -55,7 +56,7 @@ def _render_white(scene, view_layer, phantoms, path):
                 if getattr(layer_collection, flag):
                     state.set(layer_collection, flag, False)
             stack.extend(layer_collection.children)
-        state.set(view_layer, "material_override", _white())
+        state.set(view_layer, "material_override", material)
         render = scene.render
         state.set(render, "engine", "CYCLES")
         state.set(render, "film_transparent", True)
@@ -68,8 +69,8 @@ def _render_white(scene, view_layer, phantoms, path):
         state.set(fmt, "file_format", "OPEN_EXR")
         state.set(fmt, "color_mode", "RGBA")
         state.set(fmt, "color_depth", "32")
-        state.set(scene.cycles, "samples", ALBEDO_SAMPLES)
-        state.set(scene.cycles, "use_denoising", True)
+        state.set(scene.cycles, "samples", samples)
+        state.set(scene.cycles, "use_denoising", denoise)
         state.set(scene.cycles, "use_adaptive_sampling", False)
         # each pixel its own area, like a plate pixel: no blur across pixels
         state.set(scene.cycles, "pixel_filter_type", "BOX")
@@ -88,14 +89,37 @@ def _same_pixels(path, image):
     return old.shape == image.shape and np.array_equal(old, image)
 
 
+def _write_if_changed(path, image):
+    # an unchanged map keeps its file (and mtime): the bake's input hash describes images by
+    # mtime, so rewriting the same pixels would make every bake redo every probe
+    if not (os.path.isfile(path) and _same_pixels(path, image)):
+        write_exr(path, image)
+    return path
+
+
 def phantom_albedo(scene, view_layer, phantoms, plate, calib):
-    """Write the albedo map; returns (path, world-to-camera 4x4 of the frame it was made at).
-    ``calib`` = (fx, fy, cx, cy, dist, width, height) of the plate's lens."""
+    """Write the albedo map and the radiance map; returns (albedo path, radiance path,
+    world-to-camera 4x4 of the frame they were made at, fallback albedo). ``calib`` = (fx, fy, cx,
+    cy, dist, width, height) of the plate's lens.
+
+    The radiance map is what the camera filmed where it saw a phantom: the plate's RGB, and in A
+    the distance from the camera to the phantom there (0 where it saw none), so the material can
+    tell the point the camera saw from one hidden behind it."""
+    from .bake import distance_render
     from .grain import plate_frame_pixels
 
     folder = data_folder(scene, "phantoms")
     os.makedirs(folder, exist_ok=True)
-    white = _render_white(scene, view_layer, phantoms, os.path.join(folder, "white.exr"))
+    white = _render_phantoms(scene, view_layer, phantoms, os.path.join(folder, "white.exr"), _white(),
+                             ALBEDO_SAMPLES, True)
+    # one sample a pixel, undenoised: a distance, not an average of two surfaces' distances
+    ours = bpy.data.materials.get(names.PROBE_DISTANCE) is None
+    try:
+        distance = _render_phantoms(scene, view_layer, phantoms, os.path.join(folder, "distance.exr"),
+                                    distance_render.distance_material(), 1, False)
+    finally:
+        if ours:
+            distance_render.remove()
     pixels = plate_frame_pixels(plate, scene)[..., :3].astype(np.float32)
     fx, fy, cx, cy, dist, width, height = calib
     if lens.has_distortion(dist):
@@ -106,10 +130,11 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     albedo[seen] = np.clip(pixels[seen] / white[..., :3][seen], 0.0, MAX_ALBEDO)
     fallback = np.median(albedo[seen], axis=0) if seen.any() else np.full(3, 0.5)
     albedo[~seen] = fallback
-    path = os.path.join(folder, "albedo.exr")
-    image = np.concatenate([albedo, seen[..., None].astype(np.float32)], -1)
-    # an unchanged albedo keeps its file (and mtime): the bake's input hash describes images by
-    # mtime, so rewriting the same pixels would make every bake redo every probe
-    if not (os.path.isfile(path) and _same_pixels(path, image)):
-        write_exr(path, image)
-    return path, np.array(scene.camera.matrix_world.inverted()), fallback
+    albedo_path = _write_if_changed(os.path.join(folder, "albedo.exr"),
+                                    np.concatenate([albedo, seen[..., None].astype(np.float32)], -1))
+    phantom_there = distance[..., 3] > 0.5
+    filmed = np.clip(np.nan_to_num(pixels, nan=0.0, posinf=0.0), 0.0, None)    # a plate's bad pixels emit nothing
+    radiance = np.concatenate([np.where(phantom_there[..., None], filmed, 0.0),
+                               np.where(phantom_there, distance[..., 0], 0.0)[..., None]], -1).astype(np.float32)
+    radiance_path = _write_if_changed(os.path.join(folder, "radiance.exr"), radiance)
+    return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback

@@ -50,20 +50,28 @@ def apply_phantom_surfaces(scene, phantoms, view_layer=None):
     if not wanted:
         return 0
     layer = view_layer or bpy.context.view_layer
-    path, world_to_camera, fallback = phantom_albedo(scene, layer, wanted, plate, plate_intrinsics(scene, camera))
-    image = bpy.data.images.get(names.PHANTOM_ALBEDO_IMAGE)
-    if image is not None:
-        bpy.data.images.remove(image)
-    image = bpy.data.images.load(path, check_existing=False)
-    image.name = names.PHANTOM_ALBEDO_IMAGE
-    image.colorspace_settings.name = "Non-Color"
-    image.alpha_mode = "STRAIGHT"
-    # the map is in the render camera's frame: its own pinhole, no lens
-    material = build_phantom_plate_material(image, world_to_camera, pinhole_from_camera(scene, camera),
+    albedo_path, radiance_path, world_to_camera, fallback = phantom_albedo(
+        scene, layer, wanted, plate, plate_intrinsics(scene, camera))
+    albedo = _load_map(names.PHANTOM_ALBEDO_IMAGE, albedo_path, "STRAIGHT")
+    # RGB and A are separate facts (the plate, the distance): neither may scale the other
+    radiance = _load_map(names.PHANTOM_RADIANCE_IMAGE, radiance_path, "CHANNEL_PACKED")
+    # the maps are in the render camera's frame: its own pinhole, no lens
+    material = build_phantom_plate_material(albedo, radiance, world_to_camera, pinhole_from_camera(scene, camera),
                                             (scene.render.resolution_x, scene.render.resolution_y), fallback)
     for ob in wanted:
         _show_plate(ob, material)
     return len(wanted)
+
+
+def _load_map(name, path, alpha_mode):
+    image = bpy.data.images.get(name)
+    if image is not None:
+        bpy.data.images.remove(image)
+    image = bpy.data.images.load(path, check_existing=False)
+    image.name = name
+    image.colorspace_settings.name = "Non-Color"
+    image.alpha_mode = alpha_mode
+    return image
 
 
 def _show_plate(ob, material):

@@ -68,6 +68,10 @@ def describe_tree(tree, seen=None, camera_blind=False):
     for node in tree.nodes:
         if camera_blind and node.name == names.RAY_CAMERA_NODE:
             continue
+        # what a bake made (the filmed phantoms' shadow ratio): no bake renders it (it is off
+        # outside the composite's CG layer), and describing it would make the next bake stale
+        if node.name == names.BAKED_RATIO_GROUP:
+            continue
         inputs = {}
         for sock in node.inputs:
             if not sock.is_linked and hasattr(sock, "default_value"):

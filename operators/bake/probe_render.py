@@ -109,6 +109,10 @@ class ProbeRenderer:
         # map's render showed the surfaces' own shading (headless, the context's layer is the
         # first one, which setup_composite turns off).
         state.set(self.view_layer, "use", True)
+        # the phantoms as path-traced surfaces seen by the probe's camera, not the composite's
+        # holdout or filmed plate: a probe is rendered before the shadows it would show are baked
+        for key in names.PHANTOM_LAYER_KEYS:
+            state.set_item(self.view_layer, key, 0.0)
         state.set(render, "filepath", os.path.join(self._tmpdir, "probe.exr"))
         fmt = render.image_settings
         # Recorded first so put back last, once the user's format is back: a PNG's 8 bits set

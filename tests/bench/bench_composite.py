@@ -66,9 +66,14 @@ SETUP = {"sbrdf": {}, "sbrdf_ggx": SBRDF, "sbrdf_phong": SBRDF, "sbrdf_paper": S
          "sbrdf_eevee": dict(engine="EEVEE"),
          "sbrdf_eevee_baked": dict(engine="EEVEE", method="BAKED"),
          "cycles_baked": dict(method="BAKED"),
-         "sbrdf_sbrdf": SBRDF, "sbrdf_baked_sbrdf": dict(method="BAKED", **SBRDF)}
+         "sbrdf_sbrdf": SBRDF, "sbrdf_baked_sbrdf": dict(method="BAKED", **SBRDF),
+         "sbrdf_baked_replica": dict(method="BAKED")}
 # the shot's shadows baked once
-BAKED_ROUTES = ("sbrdf_baked", "sbrdf_eevee_baked", "cycles_baked", "sbrdf_baked_sbrdf")
+BAKED_ROUTES = ("sbrdf_baked", "sbrdf_eevee_baked", "cycles_baked", "sbrdf_baked_sbrdf", "sbrdf_baked_replica")
+# The default route shows the phantoms as a user's scene does by default: the plate on them
+# (Phantom Plate; with baked shadows the CG's rays see the filmed plate, shadowed, since session
+# 31). Every other route keeps the floor's and box's own materials, exact replicas of the truth's.
+PLATE_PHANTOM_ROUTES = ("sbrdf_baked",)
 # Probes are view-independent: in a shot where the camera moves and the objects stand still (the
 # paper's AR case) one bake serves every frame. Times are reported per frame of such a shot too.
 SHOT_FRAMES = 24
@@ -363,7 +368,9 @@ EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,)),
                 "principled": ("principled baked", "cycles_baked", (4, 16)),
                 # a metal shaded by its SBRDF (the default before session 29; a dielectric's default)
                 "sbrdf": ("platelight (SBRDF)", "sbrdf_sbrdf", (4, 16)),
-                "sbrdf_baked": ("platelight baked (SBRDF)", "sbrdf_baked_sbrdf", (1, 4, 16))}
+                "sbrdf_baked": ("platelight baked (SBRDF)", "sbrdf_baked_sbrdf", (1, 4, 16)),
+                # the default route before session 31: the phantoms' own (replica) materials, path-traced
+                "replica": ("platelight baked (replica phantoms)", "sbrdf_baked_replica", (1, 4, 16, 64))}
 GLOSSY_LOBES = {"sbrdf_ggx": "ggx", "sbrdf_phong": "phong"}     # the routes that set Glossy Lobes
 SHOT_REFERENCE = "catcher"
 # The shot: the camera orbits 20 degrees about the sphere over 24 frames; rendered and scored are
@@ -436,6 +443,8 @@ def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, ou
     """Set up the route once (the bake serves the shot), then render the shot's frames in one
     session with persistent data. Returns (images, bake_s, setup_s, [seconds per frame])."""
     scene, floor, sphere = build(bpy, hdri_path, material, shot_camera(1, box), BOX if box else None)
+    if route in PLATE_PHANTOM_ROUTES:
+        scene.platelight.phantom_surface = "PLATE"
     key_shot_camera(scene, box)
     scene.render.use_persistent_data = True
     set_device(scene)
