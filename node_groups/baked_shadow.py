@@ -25,9 +25,8 @@ SEEN_SLACK = 0.01
 def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None = None, centre=None):
     """The group (made or rebuilt in place, so materials using it follow a new bake) whose output
     *Ratio* is 1 + (baked ratio − 1) at the shading point, read from ``ratio_path`` (ratio − 1, RGB)
-    and ``distance_path`` (radial distances), both panoramas centred at ``centre``. Without a
-    bake (no paths) it is 1 everywhere: no change. Only a bake rebuilds it; ``ensure_ratio_group``
-    returns the one there is."""
+    and ``distance_path`` (radial distances), both panoramas centred at ``centre``; without a bake
+    (no paths), 1 everywhere. A bake rebuilds it; ``ensure_ratio_group`` gives the one there is."""
     tree = shader_group(names.BAKED_RATIO_GROUP)
     sync_interface(tree, [("OUTPUT", "Ratio", "NodeSocketColor", {})])
     tree.nodes.clear()
@@ -64,7 +63,9 @@ def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None =
 
 
 def ensure_ratio_group():
-    """The baked ratio group as it is, or a neutral one (ratio 1) where nothing was baked yet."""
+    """The baked ratio group as it is, or one of ratio 1 where nothing was baked yet: the
+    phantoms' plate material always holds it, so its shape (which a bake's input hash describes)
+    does not change with the first bake."""
     return bpy.data.node_groups.get(names.BAKED_RATIO_GROUP) or baked_ratio_group()
 
 

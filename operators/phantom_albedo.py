@@ -16,6 +16,7 @@ from .. import compat
 from ..addon import names
 from ..addon.compositing import lens
 from ..addon.exr_io import read_exr, write_exr
+from ..node_groups.distance_material import distance_material, remove_distance_material
 from .bake.scene_state import SceneState
 from .common import GEOMETRY_TYPES
 from .common import data_folder
@@ -61,7 +62,15 @@ def _render_phantoms(scene, view_layer, phantoms, path, material, samples, denoi
         state.set(render, "engine", "CYCLES")
         state.set(render, "film_transparent", True)
         state.set(render, "use_compositing", False)
-        state.set(render, "use_single_layer", True)
+        # Only this layer, the others switched off rather than the render told to do one layer:
+        # a single-layer render keeps the layers of the render before in its result when the size
+        # is unchanged, and the white render's EXR came back as the distance render before it
+        # (albedo a seventh of the plate's; operators/bake/probe_render.py met the same)
+        state.set(render, "use_single_layer", False)
+        for layer in scene.view_layers:
+            if layer != view_layer and layer.use:
+                state.set(layer, "use", False)
+        state.set(view_layer, "use", True)
         state.set(render, "filepath", path)
         fmt = render.image_settings
         for attr, value in compat.still_image_format():
@@ -75,7 +84,7 @@ def _render_phantoms(scene, view_layer, phantoms, path, material, samples, denoi
         # each pixel its own area, like a plate pixel: no blur across pixels
         state.set(scene.cycles, "pixel_filter_type", "BOX")
         state.set(scene.cycles, "filter_width", 1.0)
-        bpy.ops.render.render(write_still=True, layer=view_layer.name)
+        bpy.ops.render.render(write_still=True)
         return read_exr(path, "RGBA")
     finally:
         state.restore()
@@ -105,7 +114,6 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     The radiance map is what the camera filmed where it saw a phantom: the plate's RGB, and in A
     the distance from the camera to the phantom there (0 where it saw none), so the material can
     tell the point the camera saw from one hidden behind it."""
-    from .bake import distance_render
     from .grain import plate_frame_pixels
 
     folder = data_folder(scene, "phantoms")
@@ -116,10 +124,10 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     ours = bpy.data.materials.get(names.PROBE_DISTANCE) is None
     try:
         distance = _render_phantoms(scene, view_layer, phantoms, os.path.join(folder, "distance.exr"),
-                                    distance_render.distance_material(), 1, False)
+                                    distance_material(), 1, False)
     finally:
         if ours:
-            distance_render.remove()
+            remove_distance_material()
     pixels = plate_frame_pixels(plate, scene)[..., :3].astype(np.float32)
     fx, fy, cx, cy, dist, width, height = calib
     if lens.has_distortion(dist):

@@ -51,11 +51,11 @@ def add_peel(tree, shader_socket, output_node):
 
 
 def peeled_distance_material():
-    """The bake's distance material (distance_render.distance_material) peeled: made on first
+    """The bake's distance material (node_groups/distance_material.py) peeled: made on first
     use, removed with the other at the bake's end."""
     material = bpy.data.materials.get(names.PROBE_DISTANCE_BEHIND)
     if material is None:
-        from .distance_render import distance_material
+        from ...node_groups.distance_material import distance_material
 
         material = distance_material().copy()
         material.name = names.PROBE_DISTANCE_BEHIND

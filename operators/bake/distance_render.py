@@ -15,10 +15,9 @@ import os
 import bpy
 import numpy as np
 
-from ... import compat
-from ...addon import names
 from ...addon.exr_io import read_exr
 from ...addon.ibl import distance as distance_maps
+from ...node_groups.distance_material import distance_material
 
 DISTANCE_SCALE = 4
 DISTANCE_MAX_HEIGHT = 1024
@@ -27,28 +26,6 @@ DISTANCE_MAX_HEIGHT = 1024
 def distance_height(probe_height: int) -> int:
     """The distance map's height for a probe ``probe_height`` px high."""
     return max(probe_height, min(DISTANCE_SCALE * probe_height, DISTANCE_MAX_HEIGHT))
-
-
-def distance_material():
-    """The material emitting View Distance, made on first use; ``remove()`` takes it away again
-    at the bake's end."""
-    material = bpy.data.materials.get(names.PROBE_DISTANCE)
-    if material is None:
-        material = compat.new_material(names.PROBE_DISTANCE)
-        tree = material.node_tree
-        tree.nodes.clear()
-        camera = tree.nodes.new("ShaderNodeCameraData")
-        emit = tree.nodes.new("ShaderNodeEmission")
-        out = tree.nodes.new("ShaderNodeOutputMaterial")
-        tree.links.new(camera.outputs["View Distance"], emit.inputs["Color"])
-        tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
-    return material
-
-
-def remove():
-    material = bpy.data.materials.get(names.PROBE_DISTANCE)
-    if material is not None:
-        bpy.data.materials.remove(material)
 
 
 def render_distance(scene, view_layer, folder, clip_end, material=None):

@@ -13,6 +13,7 @@ import numpy as np
 
 from ... import compat
 from ...addon import names
+from ...node_groups.distance_material import remove_distance_material
 from ...addon.bake.probe_size import samples_for
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
@@ -314,7 +315,7 @@ class ProbeRenderer:
             if self._render_results is not None and image.name not in self._render_results:
                 bpy.data.images.remove(image)
         self._render_results = None
-        distance_render.remove()
+        remove_distance_material()
         behind_render.remove()
         if self._tmpdir:
             shutil.rmtree(self._tmpdir, ignore_errors=True)

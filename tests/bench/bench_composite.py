@@ -117,9 +117,8 @@ def build(bpy, hdri_path, material, camera=None, box=None):
     scene.cycles.seed = 7
     scene.view_settings.view_transform = "Standard"
     # The phantoms here are exact replicas of the real floor and box (the truth renders them), so
-    # they keep their own materials, as Cycles' documented catcher set-up does. With the plate
-    # projected on them (the scene default) a resting sphere's contact shadow came out 0.67 dark
-    # against the truth's 0.89: the plate, an emitter to non-camera rays, has no CG shadow in it.
+    # they keep their own materials, as Cycles' documented catcher set-up does; the default route
+    # takes the plate on them, as a user's scene does (PLATE_PHANTOM_ROUTES, composite_shot).
     scene.platelight.phantom_surface = "MATERIAL"
     world = compat().new_world("Probe")
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
@@ -664,7 +663,12 @@ def write_report(out_dir, rows):
         "phantom (since session 27); since session 28 one render of Cycles' Shadow Catcher pass, that pass "
         "alone denoised (before, two renders divided); since session 29 at most 3 diffuse bounces; "
         "its time is in *bake*), `setup_composite(method='BAKED')` with the listed samples for the "
-        "CG layer and its default one sample for the baked shadows' layer; no path tracing per frame. *platelight layered*: the CG in its own layer at "
+        "CG layer and its default one sample for the baked shadows' layer; no path tracing per frame; since session 31 "
+        "with the phantoms' default surface, the plate (a user's scene has no replica of the real floor): the CG "
+        "layer's rays meet the phantoms as the camera filmed them, times the baked ratio (docs/decisions.md, "
+        "\"Filmed phantoms\"). *platelight baked (replica phantoms)* (`PLATELIGHT_BENCH_EXTRA=replica`): the same "
+        "with the floor's and box's own materials, exact replicas of the truth's, path-traced in the CG's reflections "
+        "(what *platelight baked* measured before session 31). Every other route keeps the replicas. *platelight layered*: the CG in its own layer at "
         "4 spp, the shadows in a catcher layer at the listed samples. *platelight eevee*: "
         "`setup_composite(engine='EEVEE')`, Debevec's three layers rasterised (software GL here), "
         "listed samples = TAA samples. *platelight eevee baked*: the shot's shadows baked as for "

@@ -96,10 +96,11 @@ def test_rerunning_never_duplicates(bpy_clean, tmp_path):
         bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr"))
         assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
     state = scene_state(bpy)
-    assert state["images"] == ["PlateLight Phantom Albedo", "PlateLight Plate"]   # one of each
+    assert state["images"] == ["PlateLight Phantom Albedo", "PlateLight Phantom Radiance", "PlateLight Plate"]   # one of each
     tree = compat().compositor_tree(bpy.context.scene)
     own_tree = [tree.name] if tree.name in bpy.data.node_groups else []   # 4.5: the scene's own tree
-    assert state["node_groups"] == sorted(["PlateLight Differential"] + own_tree)
+    # the phantoms' plate material holds the baked ratio group (ratio 1 before any bake)
+    assert state["node_groups"] == sorted(["PlateLight Baked Ratio", "PlateLight Differential"] + own_tree)
     assert [c for c in state["collections"] if c.startswith("PlateLight")] == ["PlateLight CG", "PlateLight Phantoms"]
     assert [n for n, use in state["view_layers"] if use] == [
         "PlateLight CG", "PlateLight Local", "PlateLight Local Without"]
