@@ -21,7 +21,14 @@ from .bake.scene_state import SceneState
 from .common import GEOMETRY_TYPES
 from .common import data_folder
 
-ALBEDO_SAMPLES = 32      # the white render's samples (then OIDN): its noise becomes albedo noise
+# The white render's samples (then OIDN): its noise becomes albedo noise. 16 against 32: 0.15 %
+# median, 0.7 % 99th percentile apart, 17 against 24 s at 960x540 on 2 cores (the set-up's cost)
+ALBEDO_SAMPLES = 16
+# The plate is smoothed by this Gaussian (pixels, within the phantoms) before the CG's rays see it:
+# its grain or render noise is no part of the real surface, and a mirror's reflection, which
+# minifies the plate, turned it into noise the CG's samples had to average (960x540 mirror, 16 CG
+# samples: 41.9 dB object unsmoothed, 42.8 smoothed by 1.5 px, as by 2 px or with one flat colour)
+FILMED_SMOOTHING = 1.5
 MIN_SHADING = 1e-4       # below this the white render saw no light: the albedo is unknown there
 # Albedos above 1 are kept up to this: a plate brighter than the scene's lights can make (probe
 # and plate exposed differently) still comes back as itself; the cap keeps phantoms lighting
@@ -106,14 +113,36 @@ def _write_if_changed(path, image):
     return path
 
 
+def _smooth_within(image, mask, sigma):
+    """``image`` blurred by a Gaussian of ``sigma`` px over the pixels of ``mask`` only (a phantom's
+    edge does not take in the sky or the CG beside it)."""
+    import cv2
+
+    weight = mask.astype(np.float32)
+    total = cv2.GaussianBlur(image.astype(np.float32) * weight[..., None], (0, 0), sigma)
+    norm = cv2.GaussianBlur(weight, (0, 0), sigma)[..., None]
+    return np.where(norm > 1e-3, total / np.maximum(norm, 1e-3), image)
+
+
+def _farthest_around(distance):
+    """Each pixel's largest distance over it and its 8 neighbours. One sample's distance stands for
+    the whole pixel, but a floor receding towards the horizon spans far more than the test's 5 %
+    within one pixel: against the pixel's own sample, a third of the far floor's points counted as
+    hidden and were path-traced, a speckled band in a mirror (960x540, 4 CG samples: 35.3 dB
+    object against 37.9 path-tracing it all)."""
+    padded = np.pad(distance, 1, mode="edge")
+    rows, cols = distance.shape
+    return np.max([padded[i:i + rows, j:j + cols] for i in range(3) for j in range(3)], axis=0)
+
+
 def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     """Write the albedo map and the radiance map; returns (albedo path, radiance path,
     world-to-camera 4x4 of the frame they were made at, fallback albedo). ``calib`` = (fx, fy, cx,
     cy, dist, width, height) of the plate's lens.
 
     The radiance map is what the camera filmed where it saw a phantom: the plate's RGB, and in A
-    the distance from the camera to the phantom there (0 where it saw none), so the material can
-    tell the point the camera saw from one hidden behind it."""
+    the farthest distance from the camera to a phantom around that pixel (0 where it saw none), so
+    the material can tell a point the camera saw from one hidden behind it."""
     from .grain import plate_frame_pixels
 
     folder = data_folder(scene, "phantoms")
@@ -142,7 +171,8 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
                                     np.concatenate([albedo, seen[..., None].astype(np.float32)], -1))
     phantom_there = distance[..., 3] > 0.5
     filmed = np.clip(np.nan_to_num(pixels, nan=0.0, posinf=0.0), 0.0, None)    # a plate's bad pixels emit nothing
-    radiance = np.concatenate([np.where(phantom_there[..., None], filmed, 0.0),
-                               np.where(phantom_there, distance[..., 0], 0.0)[..., None]], -1).astype(np.float32)
+    reach = np.where(phantom_there, _farthest_around(np.where(phantom_there, distance[..., 0], 0.0)), 0.0)
+    filmed = _smooth_within(filmed, phantom_there, FILMED_SMOOTHING)
+    radiance = np.concatenate([np.where(phantom_there[..., None], filmed, 0.0), reach[..., None]], -1).astype(np.float32)
     radiance_path = _write_if_changed(os.path.join(folder, "radiance.exr"), radiance)
     return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback
