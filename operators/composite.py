@@ -134,6 +134,13 @@ SMOOTH_CG_SAMPLES, PATH_TRACED_CG_SAMPLES = 4, 64
 # (9.18 s against 9.16 off); 2, 4 and 8 gave the same image in 5.2-5.3 s
 # (docs/bench/cg_layer_mirror_960x540.md)
 ADAPTIVE_MIN_SAMPLES = 4
+# With the filmed phantoms a path ends on an emitter where it used to go on and be clamped as
+# indirect light (Cycles' default clamp, 10): a rare sample of enormous weight off a path-traced
+# metal then counts as direct light, unclamped (one 7.6e5 sample in a 256-sample glossy copper
+# frame, spread by the denoiser into a 31.7 dB object against 43.6). Direct light is clamped here,
+# unless the scene clamps it harder; the sun's own reflection in a mirror (4000 under the
+# benchmark's HDRI) stays far above white (docs/decisions.md, "Filmed phantoms")
+FILMED_CLAMP_DIRECT = 100.0
 
 
 class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
@@ -316,6 +323,8 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         # with baked shadows the CG's rays see the filmed plate, shadowed, on the phantoms
         # (node_groups/phantom_plate.py): no noise from path-tracing what the camera filmed
         cg_layer[names.FILMED_PHANTOMS_KEY] = 1.0 if method == "BAKED" else 0.0
+        if method == "BAKED" and not 0.0 < scene.cycles.sample_clamp_direct <= FILMED_CLAMP_DIRECT:
+            scene.cycles.sample_clamp_direct = FILMED_CLAMP_DIRECT
         if method == "DIFFERENTIAL":
             local_cg = "holdout" if engine == compat.EEVEE else "indirect"
             _configure_layer(_view_layer(scene, names.LAYER_LOCAL), cg_coll, phantom_coll, local_cg, False)

@@ -401,6 +401,8 @@ def test_a_mirror_sees_the_filmed_floor_shadowed_and_without_noise(bpy_clean, tm
     assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=1, denoise_shadows=False) == {"FINISHED"}
     cg_layer = scene.view_layers[names.LAYER_CG]
     assert cg_layer[names.FILMED_PHANTOMS_KEY] == 1.0
+    # a path that ends on the filmed floor counts as direct light: clamped (Cycles' default: off)
+    assert scene.cycles.sample_clamp_direct == 100.0
     scene.cycles.pixel_filter_type = "BOX"      # pixel centres: the same mirror point at any seed
     scene.cycles.filter_width = 0.01
 
