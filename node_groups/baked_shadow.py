@@ -22,6 +22,12 @@ SEEN_TOLERANCE = 0.05
 SEEN_SLACK = 0.01
 
 
+def seen_at(g, distance, stored):
+    """1 where a point at ``distance`` is the one a render that stored ``stored`` for its direction
+    saw (no farther than the tolerance beyond it), else 0."""
+    return g.math("LESS_THAN", distance, g.math("MULTIPLY_ADD", stored, 1.0 + SEEN_TOLERANCE, SEEN_SLACK))
+
+
 def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None = None, centre=None):
     """The group (made or rebuilt in place, so materials using it follow a new bake) whose output
     *Ratio* is 1 + (baked ratio − 1) at the shading point, read from ``ratio_path`` (ratio − 1, RGB)
@@ -55,8 +61,7 @@ def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None =
     ratio_minus_one = panorama(ratio_path, "Linear")
     stored = g.node("ShaderNodeSeparateColor")
     g.link(panorama(distance_path, "Closest"), stored.inputs["Color"])
-    reach = g.math("MULTIPLY_ADD", stored.outputs["Red"], 1.0 + SEEN_TOLERANCE, SEEN_SLACK)
-    seen = g.math("LESS_THAN", g.vmath("LENGTH", offset), reach)
+    seen = seen_at(g, g.vmath("LENGTH", offset), stored.outputs["Red"])
     change = g.vmath("SCALE", ratio_minus_one, scale=seen)
     g.link(g.vmath("ADD", change, (1.0, 1.0, 1.0)), gout.inputs["Ratio"])
     return tree

@@ -10,7 +10,7 @@ import numpy as np
 from .. import compat
 from ..addon import names
 from ._build import Graph
-from .baked_shadow import SEEN_SLACK, SEEN_TOLERANCE, ensure_ratio_group
+from .baked_shadow import ensure_ratio_group, seen_at
 
 
 def pinhole_from_camera(scene, camera):
@@ -114,8 +114,7 @@ def _filmed(g, diffuse, uv, in_front, inside, position, world_to_camera, radianc
     distance = g.vmath("LENGTH", g.vmath("SUBTRACT", position, tuple(float(c) for c in eye)))
     # the point the camera saw there, not one hidden behind it (the tolerance of the shadow bake's
     # own distance test); A = 0 where the camera saw no phantom
-    reach = g.math("MULTIPLY_ADD", stored.outputs["Alpha"], 1.0 + SEEN_TOLERANCE, SEEN_SLACK)
-    seen_there = g.math("MAXIMUM", g.math("SUBTRACT", 1.0, inside), g.math("LESS_THAN", distance, reach))
+    seen_there = g.math("MAXIMUM", g.math("SUBTRACT", 1.0, inside), seen_at(g, distance, stored.outputs["Alpha"]))
     filmed = g.math("MULTIPLY", g.math("GREATER_THAN", stored.outputs["Alpha"], 0.0), seen_there)
     ratio = g.node("ShaderNodeGroup")
     ratio.name = ratio.label = names.BAKED_RATIO_GROUP
