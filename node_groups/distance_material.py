@@ -1,7 +1,8 @@
 """The temporary material that emits each surface's distance from the camera (Camera Data's View
-Distance; for a panoramic camera the radial distance from its centre): the probe bake's distance
-maps (operators/bake/distance_render.py) and the plate frame's phantom distances
-(operators/phantom_albedo.py) are renders of it. Made on first use, removed after."""
+Distance; for a panoramic camera the radial distance from its centre) in R, and its object's pass
+index in G: the probe bake's distance maps (operators/bake/distance_render.py, R only) and the
+plate frame's phantom distances and objects (operators/phantom_albedo.py) are renders of it. Made
+on first use, removed after."""
 import bpy
 
 from .. import compat
@@ -17,9 +18,13 @@ def distance_material():
         tree = material.node_tree
         tree.nodes.clear()
         camera = tree.nodes.new("ShaderNodeCameraData")
+        index = tree.nodes.new("ShaderNodeObjectInfo")
+        rgb = tree.nodes.new("ShaderNodeCombineXYZ")
         emit = tree.nodes.new("ShaderNodeEmission")
         out = tree.nodes.new("ShaderNodeOutputMaterial")
-        tree.links.new(camera.outputs["View Distance"], emit.inputs["Color"])
+        tree.links.new(camera.outputs["View Distance"], rgb.inputs["X"])
+        tree.links.new(index.outputs["Object Index"], rgb.inputs["Y"])
+        tree.links.new(rgb.outputs["Vector"], emit.inputs["Color"])
         tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
     return material
 

@@ -116,8 +116,11 @@ def _write_if_changed(path, image):
 
 def _smooth_within(image, mask, sigma):
     """``image`` blurred by a Gaussian of ``sigma`` px over the pixels of ``mask`` only (a phantom's
-    edge does not take in the sky or the CG beside it)."""
+    edge does not take in the sky or the CG beside it). ``sigma`` 0: ``image`` as it is."""
     import cv2
+
+    if sigma <= 0:
+        return image
 
     weight = mask.astype(np.float32)
     total = cv2.GaussianBlur(image.astype(np.float32) * weight[..., None], (0, 0), sigma)
@@ -137,8 +140,12 @@ def _farthest_around(distance):
 
 def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     """Write the albedo map and the radiance map; returns (albedo path, radiance path,
-    world-to-camera 4x4 of the frame they were made at, fallback albedo). ``calib`` = (fx, fy, cx,
-    cy, dist, width, height) of the plate's lens.
+    world-to-camera 4x4 of the frame they were made at, fallback albedo, each phantom's hidden
+    albedo). ``calib`` = (fx, fy, cx, cy, dist, width, height) of the plate's lens.
+
+    Where the camera did not see a phantom (behind another, or outside the frame) its albedo is
+    unknown: each phantom gets the median albedo of what the camera saw of it (the floor behind a
+    red box stays the floor's grey, not the box's red), one it did not see at all the fallback.
 
     The radiance map is what the camera filmed where it saw a phantom: the plate's RGB, and in A
     the farthest distance from the camera to a phantom around that pixel (0 where it saw none), so
@@ -151,10 +158,14 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
                              ALBEDO_SAMPLES, True)
     # one sample a pixel, undenoised: a distance, not an average of two surfaces' distances
     ours = bpy.data.materials.get(names.PROBE_DISTANCE) is None
+    indices = SceneState()      # each phantom's pass index: G of the distance render says whose pixel
     try:
+        for number, ob in enumerate(phantoms, start=1):
+            indices.set(ob, "pass_index", number)
         distance = _render_phantoms(scene, view_layer, phantoms, os.path.join(folder, "distance.exr"),
                                     distance_material(), 1, False)
     finally:
+        indices.restore()
         if ours:
             remove_distance_material()
     pixels = plate_frame_pixels(plate, scene)[..., :3].astype(np.float32)
@@ -170,9 +181,14 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     albedo_path = _write_if_changed(os.path.join(folder, "albedo.exr"),
                                     np.concatenate([albedo, seen[..., None].astype(np.float32)], -1))
     phantom_there = distance[..., 3] > 0.5
+    whose = np.where(phantom_there, np.rint(distance[..., 1]), 0).astype(np.int64)
+    hidden = []
+    for number in range(1, len(phantoms) + 1):
+        own = seen & (whose == number)
+        hidden.append(np.median(albedo[own], axis=0) if own.any() else fallback)
     filmed = np.clip(np.nan_to_num(pixels, nan=0.0, posinf=0.0), 0.0, None)    # a plate's bad pixels emit nothing
     reach = np.where(phantom_there, _farthest_around(np.where(phantom_there, distance[..., 0], 0.0)), 0.0)
     filmed = _smooth_within(filmed, phantom_there, FILMED_SMOOTHING)
     radiance = np.concatenate([np.where(phantom_there[..., None], filmed, 0.0), reach[..., None]], -1).astype(np.float32)
     radiance_path = _write_if_changed(os.path.join(folder, "radiance.exr"), radiance)
-    return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback
+    return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback, hidden

@@ -50,7 +50,7 @@ def apply_phantom_surfaces(scene, phantoms, view_layer=None):
     if not wanted:
         return 0
     layer = view_layer or bpy.context.view_layer
-    albedo_path, radiance_path, world_to_camera, fallback = phantom_albedo(
+    albedo_path, radiance_path, world_to_camera, fallback, hidden = phantom_albedo(
         scene, layer, wanted, plate, plate_intrinsics(scene, camera))
     albedo = _load_map(names.PHANTOM_ALBEDO_IMAGE, albedo_path, "STRAIGHT")
     # RGB and A are separate facts (the plate, the distance): neither may scale the other
@@ -58,8 +58,9 @@ def apply_phantom_surfaces(scene, phantoms, view_layer=None):
     # the maps are in the render camera's frame: its own pinhole, no lens
     material = build_phantom_plate_material(albedo, radiance, world_to_camera, pinhole_from_camera(scene, camera),
                                             (scene.render.resolution_x, scene.render.resolution_y), fallback)
-    for ob in wanted:
+    for ob, albedo in zip(wanted, hidden):
         _show_plate(ob, material)
+        ob[names.HIDDEN_ALBEDO_KEY] = [*(float(c) for c in albedo), 1.0]
     return len(wanted)
 
 
@@ -99,3 +100,5 @@ def _give_back(ob):
             if name is None:
                 slot.link = "DATA"
     del ob[KEPT_KEY]
+    if names.HIDDEN_ALBEDO_KEY in ob:
+        del ob[names.HIDDEN_ALBEDO_KEY]

@@ -307,3 +307,56 @@ def _vector(p):
 def _ground_from(cam, scene):
     origin, rays, ground = _ground(cam.matrix_world, cam.data, scene)
     return ground, origin, rays
+
+
+def test_a_phantom_hidden_from_the_camera_keeps_its_own_albedo(bpy_clean, tmp_path):
+    """The floor the plate's camera saw only through a red box is grey floor, not red: a phantom
+    point hidden from the camera takes its own phantom's albedo (the median of what the camera saw
+    of it), not the albedo of whatever hid it. Seen from above under a white sky, direct light
+    only, the path-traced (unfilmed) surfaces: the hidden floor is as grey as the filmed floor."""
+    from platelight.addon import names
+    from platelight.operators.phantom_surface import apply_phantom_surfaces
+
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    plate_camera = _camera(bpy, scene)
+    _sky(bpy, scene, 1.0)
+    floor = _floor(bpy, scene)
+    lo, hi = np.array([-0.3, 0.3, 0.0]), np.array([0.3, 0.9, 0.6])
+    box = _box(bpy, scene, tuple((lo + hi) / 2), 0.6)
+    bpy.context.view_layer.update()
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    # the plate: the red box where a pixel's ray passes through it, the grey floor elsewhere
+    origin, _rays, ground = _ground(plate_camera.matrix_world, plate_camera.data, scene)
+    through_box = _crosses_box(ground, origin, lo, hi)
+    plate = np.where(through_box[..., None], np.array([0.6, 0.08, 0.08]), np.array([0.3, 0.3, 0.3]))
+    write_exr(tmp_path / "plate.exr", plate.astype(np.float32))
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    assert apply_phantom_surfaces(scene, [floor, box]) == 2
+    box_albedo, floor_albedo = np.array(box[names.HIDDEN_ALBEDO_KEY]), np.array(floor[names.HIDDEN_ALBEDO_KEY])
+    assert box_albedo[0] / box_albedo[1] > 5 and box_albedo[3] == 1.0, box_albedo
+    assert abs(floor_albedo[0] / floor_albedo[1] - 1) < 0.02 and 0.25 < floor_albedo[1] < 0.45, floor_albedo
+
+    above = bpy.data.objects.new("Above", bpy.data.cameras.new("Above"))
+    scene.collection.objects.link(above)
+    above.location = (0.0, 1.2, 5.0)
+    scene.camera = above
+    scene.cycles.max_bounces = 0
+    bpy.context.view_layer.update()
+    ground, origin, _ = _ground_from(above, scene)
+    eye = np.array(plate_camera.matrix_world.translation)
+    margin = np.array([0.08, 0.08, 0.08])
+    on_floor = ~_crosses_box(ground, origin, lo - margin, hi + margin)
+    hidden = on_floor & _crosses_box(ground, eye, lo + margin, hi - margin)
+    filmed = on_floor & ~_crosses_box(ground, eye, lo - margin, hi + margin)
+    assert hidden.sum() > 100 and filmed.sum() > 1000
+    seen = _probe_view(bpy, scene, tmp_path / "above.exr")
+    redness = seen[..., 0] / np.maximum(seen[..., 1], 1e-4)
+    # before: the hidden floor took the box's red from the pixel in front of it (R/G about 7)
+    assert np.median(seen[hidden][:, 1]) > 0.05
+    assert np.median(redness[hidden]) < 1.1 and np.median(redness[filmed]) < 1.1, \
+        (np.median(redness[hidden]), np.median(redness[filmed]))
+    # giving the phantoms their own materials back takes the property away too
+    scene.platelight.phantom_surface = "MATERIAL"
+    assert apply_phantom_surfaces(scene, [floor, box]) == 0
+    assert names.HIDDEN_ALBEDO_KEY not in floor and names.HIDDEN_ALBEDO_KEY not in box
