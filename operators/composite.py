@@ -323,8 +323,12 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         # with baked shadows the CG's rays see the filmed plate, shadowed, on the phantoms
         # (node_groups/phantom_plate.py): no noise from path-tracing what the camera filmed
         cg_layer[names.FILMED_PHANTOMS_KEY] = 1.0 if method == "BAKED" else 0.0
-        if method == "BAKED" and not 0.0 < scene.cycles.sample_clamp_direct <= FILMED_CLAMP_DIRECT:
+        clamped = ""
+        if method == "BAKED" and phantoms and not 0.0 < scene.cycles.sample_clamp_direct <= FILMED_CLAMP_DIRECT:
+            before = scene.cycles.sample_clamp_direct
             scene.cycles.sample_clamp_direct = FILMED_CLAMP_DIRECT
+            clamped = (f"; direct light clamped at {FILMED_CLAMP_DIRECT:g} (was "
+                       f"{f'{before:g}' if before > 0 else 'off'}) against fireflies off the filmed phantoms")
         if method == "DIFFERENTIAL":
             local_cg = "holdout" if engine == compat.EEVEE else "indirect"
             _configure_layer(_view_layer(scene, names.LAYER_LOCAL), cg_coll, phantom_coll, local_cg, False)
@@ -374,7 +378,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
             layer = f", the CG at {cg_samples} samples" if method in ("LAYERED", "BAKED") else ""
             self.report({"INFO"}, f"Composite set up ({method.lower()}, {engine.lower()}): "
                         f"{len(cg)} CG object(s) ({len(noisy)} path-traced or with a sharp "
-                        f"reflection{layer}), {len(phantoms)} phantom(s), plate '{plate_image.name}'.")
+                        f"reflection{layer}), {len(phantoms)} phantom(s), plate '{plate_image.name}'{clamped}.")
         return {"FINISHED"}
 
 

@@ -380,7 +380,7 @@ def test_what_the_camera_sees_of_a_metal_leaves_the_bake_current(bpy_clean, tmp_
     assert scene.view_layers["PlateLight CG"].samples == 4
 
 
-def test_a_mirror_sees_the_filmed_floor_shadowed_and_without_noise(bpy_clean, tmp_path):
+def test_a_mirror_sees_the_filmed_floor_shadowed_and_without_noise(bpy_clean, tmp_path, capfd):
     """With baked shadows the CG's rays meet the phantoms as the camera filmed them, times the
     baked ratio (node_groups/phantom_plate.py). A chrome ball's reflection of the floor is then
     noise-free at one sample (two seeds give the same pixels) and agrees with the floor
@@ -398,11 +398,14 @@ def test_a_mirror_sees_the_filmed_floor_shadowed_and_without_noise(bpy_clean, tm
     write_exr(tmp_path / "plate.exr", plate.astype(np.float32))
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
     assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    capfd.readouterr()
     assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=1, denoise_shadows=False) == {"FINISHED"}
     cg_layer = scene.view_layers[names.LAYER_CG]
     assert cg_layer[names.FILMED_PHANTOMS_KEY] == 1.0
-    # a path that ends on the filmed floor counts as direct light: clamped (Cycles' default: off)
+    # a path that ends on the filmed floor counts as direct light: clamped (Cycles' default: off),
+    # and the artist is told
     assert scene.cycles.sample_clamp_direct == 100.0
+    assert "direct light clamped at 100 (was off)" in capfd.readouterr().out
     scene.cycles.pixel_filter_type = "BOX"      # pixel centres: the same mirror point at any seed
     scene.cycles.filter_width = 0.01
 
