@@ -128,6 +128,26 @@ def _smooth_within(image, mask, sigma):
     return np.where(norm > 1e-3, total / np.maximum(norm, 1e-3), image)
 
 
+def _crop(mask, margin):
+    """``mask`` cut to its bounding box grown by ``margin`` pixels, and the (rows, cols) slices of
+    that box: per-phantom work costs its own pixels, not the frame's."""
+    rows, cols = np.nonzero(mask.any(1))[0], np.nonzero(mask.any(0))[0]
+    if not len(rows):
+        return mask[:0, :0], (slice(0, 0), slice(0, 0))
+    box = (slice(max(rows[0] - margin, 0), rows[-1] + margin + 1),
+           slice(max(cols[0] - margin, 0), cols[-1] + margin + 1))
+    return mask[box], box
+
+
+def _inside_silhouette(mask):
+    """``mask`` less its pixels next to a pixel outside it (8-neighbours); the image's border
+    counts as inside."""
+    import cv2
+
+    return cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT,
+                     borderValue=1).astype(bool)
+
+
 def _farthest_around(distance):
     """Each pixel's largest distance over it and its 8 neighbours: one sample's distance stands for
     the whole pixel, and a floor receding towards the horizon spans more than the test's 5 % within
@@ -187,8 +207,20 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
         own = seen & (whose == number)
         hidden.append(np.median(albedo[own], axis=0) if own.any() else fallback)
     filmed = np.clip(np.nan_to_num(pixels, nan=0.0, posinf=0.0), 0.0, None)    # a plate's bad pixels emit nothing
-    reach = np.where(phantom_there, _farthest_around(np.where(phantom_there, distance[..., 0], 0.0)), 0.0)
-    filmed = _smooth_within(filmed, phantom_there, FILMED_SMOOTHING)
+    reach = np.zeros(whose.shape, np.float32)
+    for number in range(1, len(phantoms) + 1):
+        # each phantom on its own, without its silhouette: a pixel there mixes it with what is
+        # behind it, so a face the camera saw edge-on (the box's side, in a mirror beside it) took
+        # the floor's grey, and its distance passed hidden points for filmed. The silhouette is
+        # path-traced with the phantom's own albedo instead; the frame's edge is no silhouette
+        own, (rows, cols) = _crop(whose == number, margin=int(3 * FILMED_SMOOTHING) + 2)
+        inner = _inside_silhouette(own)
+        if not inner.any():
+            continue
+        farthest = _farthest_around(np.where(inner, distance[rows, cols, 0], 0.0))
+        reach[rows, cols] = np.where(inner, farthest, reach[rows, cols])
+        smoothed = _smooth_within(filmed[rows, cols], inner, FILMED_SMOOTHING)
+        filmed[rows, cols] = np.where(own[..., None], smoothed, filmed[rows, cols])
     radiance = np.concatenate([np.where(phantom_there[..., None], filmed, 0.0), reach[..., None]], -1).astype(np.float32)
     radiance_path = _write_if_changed(os.path.join(folder, "radiance.exr"), radiance)
     return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback, hidden

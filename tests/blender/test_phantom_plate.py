@@ -336,6 +336,22 @@ def test_a_phantom_hidden_from_the_camera_keeps_its_own_albedo(bpy_clean, tmp_pa
     box_albedo, floor_albedo = np.array(box[names.HIDDEN_ALBEDO_KEY]), np.array(floor[names.HIDDEN_ALBEDO_KEY])
     assert box_albedo[0] / box_albedo[1] > 5 and box_albedo[3] == 1.0, box_albedo
     assert abs(floor_albedo[0] / floor_albedo[1] - 1) < 0.02 and 0.25 < floor_albedo[1] < 0.45, floor_albedo
+    # the filmed radiance leaves out each phantom's silhouette (its pixels mix the box with the
+    # floor): no filmed distance there, and the box's red not smoothed into the floor's grey
+    import cv2
+
+    radiance = read_exr(bpy.path.abspath(bpy.data.images[names.PHANTOM_RADIANCE_IMAGE].filepath), "RGBA")
+    kernel = np.ones((3, 3), np.uint8)
+    box_px = through_box.astype(np.uint8)
+    rim = (cv2.dilate(box_px, kernel) != cv2.erode(box_px, kernel, borderValue=1))
+    # (the render's samples fall anywhere in a pixel: its silhouette may sit a pixel off the
+    # plate's, drawn through pixel centres)
+    near_rim = cv2.dilate(rim.astype(np.uint8), kernel).astype(bool)
+    assert (radiance[..., 3][rim] == 0).mean() > 0.9 and (radiance[..., 3][~near_rim] > 0).all()
+    box_core = cv2.erode(box_px, kernel, iterations=2).astype(bool)
+    floor_core = ~cv2.dilate(box_px, kernel, iterations=2).astype(bool)
+    assert (radiance[..., 0][box_core] / radiance[..., 1][box_core]).min() > 7.0
+    assert np.abs(radiance[..., 0][floor_core] / radiance[..., 1][floor_core] - 1).max() < 1e-3
 
     above = bpy.data.objects.new("Above", bpy.data.cameras.new("Above"))
     scene.collection.objects.link(above)
