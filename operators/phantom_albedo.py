@@ -128,6 +128,28 @@ def _smooth_within(image, mask, sigma):
     return np.where(norm > 1e-3, total / np.maximum(norm, 1e-3), image)
 
 
+def _filmed_radiance(pixels, distance, whose, count):
+    """The radiance map: RGB the plate smoothed within each phantom, A how far each pixel's filmed
+    phantom reaches (0: nothing filmed there).
+
+    Each phantom on its own, its silhouette left out (A 0: path-traced with the phantom's own
+    albedo): a pixel there mixes it with what is behind it, so a face the camera saw edge-on (a
+    box's side, in a mirror beside it) took the floor's grey, and the distance behind it passed
+    hidden points for filmed. The frame's edge is no silhouette."""
+    filmed = np.clip(np.nan_to_num(pixels, nan=0.0, posinf=0.0), 0.0, None)    # a plate's bad pixels emit nothing
+    reach = np.zeros(whose.shape, np.float32)
+    for number in range(1, count + 1):
+        own, box = _crop(whose == number, margin=int(3 * FILMED_SMOOTHING) + 2)
+        inner = _inside_silhouette(own)
+        if not inner.any():
+            continue
+        farthest = _farthest_around(np.where(inner, distance[box], 0.0))
+        reach[box] = np.where(inner, farthest, reach[box])
+        smoothed = _smooth_within(filmed[box], inner, FILMED_SMOOTHING)
+        filmed[box] = np.where(own[..., None], smoothed, filmed[box])
+    return np.concatenate([np.where(whose[..., None] > 0, filmed, 0.0), reach[..., None]], -1).astype(np.float32)
+
+
 def _crop(mask, margin):
     """``mask`` cut to its bounding box grown by ``margin`` pixels, and the (rows, cols) slices of
     that box: per-phantom work costs its own pixels, not the frame's."""
@@ -206,21 +228,6 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     for number in range(1, len(phantoms) + 1):
         own = seen & (whose == number)
         hidden.append(np.median(albedo[own], axis=0) if own.any() else fallback)
-    filmed = np.clip(np.nan_to_num(pixels, nan=0.0, posinf=0.0), 0.0, None)    # a plate's bad pixels emit nothing
-    reach = np.zeros(whose.shape, np.float32)
-    for number in range(1, len(phantoms) + 1):
-        # each phantom on its own, without its silhouette: a pixel there mixes it with what is
-        # behind it, so a face the camera saw edge-on (the box's side, in a mirror beside it) took
-        # the floor's grey, and its distance passed hidden points for filmed. The silhouette is
-        # path-traced with the phantom's own albedo instead; the frame's edge is no silhouette
-        own, (rows, cols) = _crop(whose == number, margin=int(3 * FILMED_SMOOTHING) + 2)
-        inner = _inside_silhouette(own)
-        if not inner.any():
-            continue
-        farthest = _farthest_around(np.where(inner, distance[rows, cols, 0], 0.0))
-        reach[rows, cols] = np.where(inner, farthest, reach[rows, cols])
-        smoothed = _smooth_within(filmed[rows, cols], inner, FILMED_SMOOTHING)
-        filmed[rows, cols] = np.where(own[..., None], smoothed, filmed[rows, cols])
-    radiance = np.concatenate([np.where(phantom_there[..., None], filmed, 0.0), reach[..., None]], -1).astype(np.float32)
-    radiance_path = _write_if_changed(os.path.join(folder, "radiance.exr"), radiance)
+    radiance_path = _write_if_changed(os.path.join(folder, "radiance.exr"),
+                                      _filmed_radiance(pixels, distance[..., 0], whose, len(phantoms)))
     return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback, hidden
