@@ -8,7 +8,11 @@ baked once), set up once; then each row changes one setting of the CG layer and 
 last frame twice, keeping the faster. *adaptive*: off, or on with Cycles' automatic minimum
 ("auto") or the given minimum; *denoiser*: the compositor's OIDN on the CG where it covers the pixel
 (Set Up Composite's, at the given quality), Cycles' own with albedo and normal guides ("Cycles,
-guided", prefilter Fast), or none; *bounces*: the scene's, or diffuse/glossy/total caps. PSNR as in
+guided", prefilter Fast), or none; *bounces*: the scene's, or diffuse/glossy/total caps;
+*filmed phantoms* (docs/decisions.md, "Filmed phantoms"): as set up, or one part taken away: "off"
+(the CG's rays path-trace the plate's albedo on the phantoms), "edge not carried" (beyond the
+frame's edge path-traced), "unsmoothed" (the filmed plate as it is, not smoothed by 1.5 px),
+"direct unclamped" (no clamp on direct light). PSNR as in
 bench_composite (frame 24, peak the truth's 99.5th percentile). Timings on this 2-core machine vary
 by about 15 % between identical runs.
 
@@ -33,6 +37,39 @@ ROWS = [(1, None, "none", None), (1, None, "High", None), (16, None, "High", Non
         (64, 8, "High", None), (16, None, "Fast", None), (16, None, "Balanced", None),
         (16, None, "Cycles, guided", None), (16, None, "High", (2, 2, 4)), (64, 4, "High", (2, 2, 4)),
         (256, 4, "High", None), (256, 4, "none", None)]
+# the filmed phantoms with one part taken away, each at the default route's samples and settings
+FILMED_VARIANTS = ("off", "edge not carried", "unsmoothed", "direct unclamped")
+FILMED_ROWS = [(samples, 4, "High", None, variant) for variant in FILMED_VARIANTS for samples in (16, 64)] \
+    + [(256, 4, "High", None, "direct unclamped")]
+
+
+def take_away(bpy, scene, part, ext):
+    """Take ``part`` of the filmed phantoms away; returns the function that puts it back."""
+    names = ext("addon.names")
+    cg_layer = scene.view_layers[names.LAYER_CG]
+    phantoms = list(bpy.data.collections[names.PHANTOM_COLLECTION].all_objects)
+    if part == "off":
+        cg_layer[names.FILMED_PHANTOMS_KEY] = 0.0
+        return lambda: cg_layer.__setitem__(names.FILMED_PHANTOMS_KEY, 1.0)
+    if part == "edge not carried":
+        node = bpy.data.materials[names.PHANTOM_PLATE_MATERIAL].node_tree.nodes[
+            ext("node_groups.phantom_plate").BEYOND_FRAME_NODE]
+        node.inputs[0].default_value = 0.0
+        return lambda: node.inputs[0].__setattr__("default_value", 1.0)
+    if part == "unsmoothed":
+        albedo, surfaces = ext("operators.phantom_albedo"), ext("operators.phantom_surface")
+        kept = albedo.FILMED_SMOOTHING
+        albedo.FILMED_SMOOTHING = 0.0
+        surfaces.apply_phantom_surfaces(scene, phantoms)
+
+        def put_back():
+            albedo.FILMED_SMOOTHING = kept
+            surfaces.apply_phantom_surfaces(scene, phantoms)
+        return put_back
+    assert part == "direct unclamped", part
+    kept = scene.cycles.sample_clamp_direct
+    scene.cycles.sample_clamp_direct = 0.0
+    return lambda: setattr(scene.cycles, "sample_clamp_direct", kept)
 
 
 def main(out_dir: pathlib.Path) -> None:
@@ -56,7 +93,11 @@ def main(out_dir: pathlib.Path) -> None:
     denoise = next(n for n in bc.compat().compositor_tree(scene).nodes if n.bl_idname == "CompositorNodeDenoise"
                    and n.inputs["Image"].links and n.inputs["Image"].links[0].from_node.layer == cg_layer.name)
     rows = []
-    for samples, minimum, denoiser, bounces in ROWS:
+
+    def ext(module):
+        return importlib.import_module(f"{bc.support.EXT_MODULE}.{module}")
+    for samples, minimum, denoiser, bounces, filmed in [(*row, "as set up") for row in ROWS] + FILMED_ROWS:
+        put_back = take_away(bpy, scene, filmed, ext) if filmed != "as set up" else (lambda: None)
         cg_layer.samples = samples
         cycles.use_adaptive_sampling = minimum is not None
         cycles.adaptive_min_samples = minimum or 0
@@ -75,10 +116,11 @@ def main(out_dir: pathlib.Path) -> None:
             image, took = bc.render(bpy, scene, out / "row.exr")
             seconds.append(took)
         row = dict(samples=samples, adaptive="off" if minimum is None else ("auto" if minimum == 0 else minimum),
-                   denoiser=denoiser, bounces="/".join(map(str, bounces)) if bounces else "scene's",
+                   denoiser=denoiser, bounces="/".join(map(str, bounces)) if bounces else "scene's", filmed=filmed,
                    warm_s=min(seconds), object=bc.psnr(image, truths[-1], obj, peak),
                    shadow=bc.psnr(image, truths[-1], shadow, peak),
                    frame=bc.psnr(image, truths[-1], np.ones_like(obj), peak))
+        put_back()
         rows.append(row)
         print(row, flush=True)
     write_report(out_dir, rows)
@@ -86,9 +128,9 @@ def main(out_dir: pathlib.Path) -> None:
 
 def write_report(out_dir, rows):
     stem = f"cg_layer_{SCENE.replace(' + ', '_').replace(' ', '_')}_{bc.SIZE}"
-    header = ["| CG samples | adaptive (minimum) | denoiser | bounces | warm frame (s) | PSNR object | PSNR shadow | PSNR frame |",
-              "|---:|---|---|---|---:|---:|---:|---:|"]
-    lines = [f"| {r['samples']} | {r['adaptive']} | {r['denoiser']} | {r['bounces']} | {r['warm_s']:.2f} | "
+    header = ["| CG samples | adaptive (minimum) | denoiser | bounces | filmed phantoms | warm frame (s) | PSNR object | PSNR shadow | PSNR frame |",
+              "|---:|---|---|---|---|---:|---:|---:|---:|"]
+    lines = [f"| {r['samples']} | {r['adaptive']} | {r['denoiser']} | {r['bounces']} | {r['filmed']} | {r['warm_s']:.2f} | "
              f"{r['object']:.2f} | {r['shadow']:.2f} | {r['frame']:.2f} |" for r in rows]
     bc.write_table(out_dir, stem, f"# The CG layer's sampling, {SCENE}, {bc.SIZE.replace('x', '×')} (issue 11)",
                    __doc__, "bench_cg_layer.py", header, lines)
