@@ -140,9 +140,9 @@ def _filmed_radiance(pixels, distance, whose, count):
     reach = np.zeros(whose.shape, np.float32)
     for number in range(1, count + 1):
         own, box = _crop(whose == number, margin=int(3 * FILMED_SMOOTHING) + 2)
-        inner = _inside_silhouette(own)
-        if not inner.any():
+        if not own.any():           # out of the frame, or hidden behind other phantoms
             continue
+        inner = _inside_silhouette(own)
         farthest = _farthest_around(np.where(inner, distance[box], 0.0))
         reach[box] = np.where(inner, farthest, reach[box])
         smoothed = _smooth_within(filmed[box], inner, FILMED_SMOOTHING)

@@ -376,3 +376,47 @@ def test_a_phantom_hidden_from_the_camera_keeps_its_own_albedo(bpy_clean, tmp_pa
     scene.platelight.phantom_surface = "MATERIAL"
     assert apply_phantom_surfaces(scene, [floor, box]) == 0
     assert names.HIDDEN_ALBEDO_KEY not in floor and names.HIDDEN_ALBEDO_KEY not in box
+
+
+def test_a_new_plate_reaches_the_next_render_with_persistent_data(bpy_clean, tmp_path):
+    """Set Up Composite turns persistent data on (a shot syncs its scene once). Setting the
+    phantoms up again for another plate rewrites their maps under the same file names; the next
+    render must show the new plate, not the images Cycles kept from the last one."""
+    from platelight.addon import names
+    from platelight.operators.phantom_surface import apply_phantom_surfaces
+
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    _camera(bpy, scene)
+    _sky(bpy, scene, 1.0)
+    floor = _floor(bpy, scene)
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.use_persistent_data = True
+    bpy.context.view_layer[names.FILMED_PHANTOMS_KEY] = 1.0
+    scene.cycles.max_bounces = 0
+    seen = []
+    for scale in (1.0, 0.5):
+        path = tmp_path / f"plate_{scale}.exr"        # another footage file; the maps' names stay
+        write_exr(path, _smooth_plate(path) * scale)
+        assert bpy.ops.platelight.setup_plate(filepath=str(path)) == {"FINISHED"}
+        assert apply_phantom_surfaces(scene, [floor]) == 1
+        seen.append(_probe_view(bpy, scene, tmp_path / f"seen_{scale}.exr"))
+    # the plate camera's own view of the filmed floor: the plate itself, then half of it
+    inner = (slice(4, H - 4), slice(4, W - 4))
+    ratio = np.median(seen[1][inner] / np.maximum(seen[0][inner], 1e-6))
+    assert abs(ratio - 0.5) < 0.02, ratio
+
+
+def test_filmed_radiance_takes_phantoms_the_frame_does_not_show(bpy_clean):
+    """A phantom out of the frame (no pixel) or a sliver (no pixel inside its silhouette) leaves
+    the radiance map as it is, filmed nowhere, instead of failing the set-up."""
+    from platelight.operators.phantom_albedo import _filmed_radiance
+
+    pixels = np.full((40, 60, 3), 0.3, np.float32)
+    distance = np.full((40, 60), 5.0, np.float32)
+    whose = np.ones((40, 60), np.int64)
+    whose[10:30, 20] = 3                     # a 1-px sliver; phantom 2 is out of the frame
+    radiance = _filmed_radiance(pixels, distance, whose, 3)
+    assert np.isfinite(radiance).all()
+    assert (radiance[10:30, 20, 3] == 0).all()                          # the sliver: not filmed
+    assert (radiance[:, 30:, 3] > 0).all() and np.allclose(radiance[:, 30:, :3], 0.3)
