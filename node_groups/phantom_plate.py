@@ -78,9 +78,9 @@ def build_phantom_plate_material(albedo_image, radiance_image, world_to_camera, 
     # own distance test); the radiance map's A is 0 where the camera saw no phantom
     seen = seen_at(g, distance, stored.outputs["Alpha"])
     # a point the camera saw takes the albedo there; a hidden one its own phantom's (names.
-    # HIDDEN_ALBEDO_KEY): the floor behind a red box took the box's red from the pixel in front
-    # (a mirror beside the box: 30.0 dB object at 16 samples, 960x540), and a phantom without the
-    # property (made after the set-up) the fallback
+    # HIDDEN_ALBEDO_KEY): the floor behind a red box took the box's red from the pixel in front (a
+    # mirror beside the box, 960x540, 16 samples: 30.0 dB object, 41.7 after); a phantom without
+    # the property (made after the set-up) takes the fallback
     known = g.math("MULTIPLY", g.math("MULTIPLY", tex.outputs["Alpha"], inside), seen)
     own = g.node("ShaderNodeAttribute", attribute_type="OBJECT", attribute_name=names.HIDDEN_ALBEDO_KEY)
     hidden = g.mix("RGBA", g.math("GREATER_THAN", own.outputs["Alpha"], 0.5),
