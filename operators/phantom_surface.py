@@ -58,9 +58,9 @@ def apply_phantom_surfaces(scene, phantoms, view_layer=None):
     # the maps are in the render camera's frame: its own pinhole, no lens
     material = build_phantom_plate_material(albedo, radiance, world_to_camera, pinhole_from_camera(scene, camera),
                                             (scene.render.resolution_x, scene.render.resolution_y), fallback)
-    for ob, albedo in zip(wanted, hidden):
+    for ob, hidden_albedo in zip(wanted, hidden):
         _show_plate(ob, material)
-        ob[names.HIDDEN_ALBEDO_KEY] = [*(float(c) for c in albedo), 1.0]
+        ob[names.HIDDEN_ALBEDO_KEY] = [*(float(c) for c in hidden_albedo), 1.0]
     return len(wanted)
 
 

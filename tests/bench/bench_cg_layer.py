@@ -48,7 +48,12 @@ FILMED_ROWS = FILMED_CONTROL + [(samples, 4, "High", None, variant) for variant 
                                 for samples in (16, 64)] + [(256, 4, "High", None, "direct unclamped")] + FILMED_CONTROL
 
 
-def take_away(bpy, scene, part, ext):
+def ext(module):
+    """The installed extension's ``module`` (e.g. "addon.names")."""
+    return importlib.import_module(f"{bc.support.EXT_MODULE}.{module}")
+
+
+def take_away(bpy, scene, part):
     """Take ``part`` of the filmed phantoms away; returns the function that puts it back."""
     names = ext("addon.names")
     cg_layer = scene.view_layers[names.LAYER_CG]
@@ -69,7 +74,7 @@ def take_away(bpy, scene, part, ext):
 def main(out_dir: pathlib.Path) -> None:
     bc.W, bc.H = (int(v) for v in bc.SIZE.split("x"))
     bpy = bc.conftest._import_bpy_with_extension()
-    importlib.import_module(f"{bc.support.EXT_MODULE}.node_groups.probe_maps").prepare_templates()
+    ext("node_groups.probe_maps").prepare_templates()
     hdri = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{bc.HDRI}.exr")
     material_name, box = bc.SHOT_SCENES[SCENE]
     material = bc.MATERIALS[material_name]
@@ -82,16 +87,13 @@ def main(out_dir: pathlib.Path) -> None:
     scene = bpy.context.scene
     cycles = scene.cycles
     scene_bounces = (cycles.diffuse_bounces, cycles.glossy_bounces, cycles.max_bounces)
-    names = importlib.import_module(f"{bc.support.EXT_MODULE}.addon.names")
+    names = ext("addon.names")
     cg_layer = scene.view_layers[names.LAYER_CG]
     denoise = next(n for n in bc.compat().compositor_tree(scene).nodes if n.bl_idname == "CompositorNodeDenoise"
                    and n.inputs["Image"].links and n.inputs["Image"].links[0].from_node.layer == cg_layer.name)
     rows = []
-
-    def ext(module):
-        return importlib.import_module(f"{bc.support.EXT_MODULE}.{module}")
     for samples, minimum, denoiser, bounces, filmed in FILMED_ROWS + [(*row, "as set up") for row in ROWS]:
-        put_back = take_away(bpy, scene, filmed, ext) if filmed != "as set up" else (lambda: None)
+        put_back = take_away(bpy, scene, filmed) if filmed != "as set up" else (lambda: None)
         cg_layer.samples = samples
         cycles.use_adaptive_sampling = minimum is not None
         cycles.adaptive_min_samples = minimum or 0
