@@ -22,7 +22,6 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty
 
 from .. import compat
 from ..addon import names
-from ..addon.bake.frames import sample_frames
 from ..addon.bake.hashing import content_hash
 from ..addon.bake.layout import DEFAULT_MAPS_DIR
 from ..addon.compositing import baked_shadows as engine
@@ -33,10 +32,9 @@ from .bake import pass_denoise
 from .bake.inputs import Describer, point_inside, world_corners, world_description
 from .bake.probe_render import ProbeRenderer
 from .bake.scene_state import SceneState
+from . import motion
 from .common import GEOMETRY_TYPES, classify_objects
 from .phantom_surface import apply_phantom_surfaces
-
-STATIC_SAMPLE_FRAMES = 48
 
 
 def uses_baked_shadows(scene) -> bool:
@@ -56,20 +54,14 @@ def shadows_folder(scene) -> str:
 
 
 def check_still(scene, objects):
-    """Raise unless every object keeps its place over the scene's range (sampled frames)."""
-    frames = sample_frames(scene.frame_start, scene.frame_end, STATIC_SAMPLE_FRAMES)
-    frame0 = scene.frame_current
-    here = {ob.name: np.array(ob.matrix_world) for ob in objects}
-    try:
-        for frame in frames:
-            scene.frame_set(int(frame))
-            for ob in objects:
-                if not np.allclose(np.array(ob.matrix_world), here[ob.name], atol=1e-6):
-                    raise PlateLightError(
-                        f"'{ob.name}' moves during the shot (frame {frame}); baked shadows need CG "
-                        "objects and phantoms that stand still: use the Shadow Catcher method.")
-    finally:
-        scene.frame_set(frame0)
+    """Raise unless every object keeps its place and shape over the scene's range."""
+    moving = motion.motions(scene, objects)
+    if moving:
+        first = next(iter(moving.values()))
+        more = f" (and {len(moving) - 1} more)" if len(moving) > 1 else ""
+        raise PlateLightError(f"{first.sentence()}{more}: baked shadows need CG objects and phantoms "
+                              "that stand still; Set Up Composite's Automatic method path-traces "
+                              "their shadows every frame instead.")
 
 
 def world_box(objects):

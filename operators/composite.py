@@ -3,7 +3,8 @@ objects into the plate by differential rendering.
 
 Objects are sorted into two collections: "PlateLight Phantoms" (object.platelight.phantom: stand-ins
 for real things) and "PlateLight CG" (every other renderable object). The methods (AUTO, the
-default, takes BAKED when the shot's shadows are baked and current, else CATCHER):
+default, takes BAKED when the shot's shadows are baked and current and no CG object or phantom
+moves or deforms during the shot (operators/motion.py), else CATCHER):
 
 - CATCHER (one render per frame): phantoms are Cycles shadow catchers. They hide CG
   behind them (a catcher is transparent in the render and occludes what is behind it), and the
@@ -30,6 +31,7 @@ from ..node_groups.compositor_tree import build_compositor_tree
 from ..node_groups import ray_twin
 from ..node_groups.sbrdf_material import is_metal, sbrdf_node, shaded_by_sbrdf
 from .bake.inputs import wants_sharp_probe
+from . import motion
 from .baked_shadows import baked_is_current
 from .common import classify_objects, find_plate_image, set_plate_colour_management
 from .eevee_check import NO_GL_SENTENCE, eevee_available
@@ -154,8 +156,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
     method: EnumProperty(
         name="Method",
         items=(
-            ("AUTO", "Automatic", "Baked Shadows when the shot's shadows are baked and still fit the "
-             "scene (the fastest route at equal error), else Shadow Catcher"),
+            ("AUTO", "Automatic", "Baked Shadows when the shot's shadows are baked, still fit the "
+             "scene and nothing moves or deforms during the shot (the fastest route at equal error), "
+             "else Shadow Catcher"),
             ("CATCHER", "Shadow Catcher", "One render: phantoms are shadow catchers; the catcher pass "
              "is the with/without ratio (fast)"),
             ("LAYERED", "Layered Catcher", "Two renders: the CG alone at CG Samples (noise-free "
@@ -252,11 +255,25 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                         "Shadows (platelight.bake_shadows) first.")
             return {"CANCELLED"}
 
+        if self.engine == "EEVEE" and scene.render.use_motion_blur:
+            self.report({"ERROR"}, "EEVEE's composite does not blur the shadows with the CG: turn "
+                        "Motion Blur off (Render Properties) or use Cycles, which blurs both.")
+            return {"CANCELLED"}
+        # a shadow baked once cannot follow what moves: asked only where a bake could be used
+        moving = motion.motions(scene, cg + phantoms) if baked is not None and self.method in ("AUTO", "BAKED") else {}
+        if self.method == "BAKED" and moving:
+            self.report({"ERROR"}, f"{next(iter(moving.values())).sentence()}, and the shadows baked "
+                        "once cannot follow it: use the Automatic or Shadow Catcher method.")
+            return {"CANCELLED"}
+
         method = self.method
         current = None                  # does the shadow bake fit the scene (hashed once, when asked)
         if method == "AUTO":
-            current = baked_is_current(scene) if baked is not None else None
+            current = baked_is_current(scene) if baked is not None and not moving else None
             method = "BAKED" if current else "CATCHER"
+            if moving:
+                self.report({"WARNING"}, f"{next(iter(moving.values())).sentence()}: the Shadow "
+                            "Catcher renders the shadows every frame instead of the baked ones.")
         if self.engine == "EEVEE":
             if not eevee_available():
                 self.report({"WARNING"}, NO_GL_SENTENCE)

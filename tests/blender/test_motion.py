@@ -1,0 +1,170 @@
+"""Moving CG: what moves or deforms over the shot is found, a shadow baked once is never used for
+it, and its shadow on a late frame is that frame's (against the analytic shadow of a floating
+ball, tests/blender/test_baked_shadows.py)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import composite_scene as cs
+from test_baked_shadows import CENTRE, R, analytic_ratio, floating_black_ball
+
+FRAMES = (1, 8)
+
+
+def keyed(ob, path, values, frames=FRAMES):
+    """Key ``ob``'s ``path`` to each value at each frame."""
+    for frame, value in zip(frames, values):
+        setattr(ob, path, value)
+        ob.keyframe_insert(path, frame=frame)
+
+
+def box(bpy, scene, name, location, modifiers=()):
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)], [],
+                     [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+    ob = bpy.data.objects.new(name, mesh)
+    ob.location = location
+    scene.collection.objects.link(ob)
+    for kind in modifiers:
+        ob.modifiers.new(kind.title(), kind)
+    return ob
+
+
+def test_every_kind_of_motion_is_found_and_still_objects_are_not(bpy_clean):
+    from platelight.operators import motion
+
+    bpy = bpy_clean
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = FRAMES
+    still = box(bpy, scene, "Still", (0, 0, 0), modifiers=("SUBSURF",))     # a static modifier
+    keys_elsewhere = box(bpy, scene, "Keyed Before The Shot", (3, 0, 0))
+    keyed(keys_elsewhere, "location", [(3, 0, 0), (3, 0, 0)], frames=(1, 40))   # a held key
+    moved = box(bpy, scene, "Keyed", (0, 3, 0))
+    keyed(moved, "location", [(0, 3, 0), (1, 3, 0)])
+    turned = box(bpy, scene, "Turned", (0, 6, 0))
+    keyed(turned, "rotation_euler", [(0, 0, 0), (0, 0, math.radians(90))])
+    parent = bpy.data.objects.new("Parent", None)
+    scene.collection.objects.link(parent)
+    keyed(parent, "location", [(0, 0, 0), (0, 0, 2)])
+    child = box(bpy, scene, "Child", (6, 0, 0))
+    child.parent = parent
+    leader = bpy.data.objects.new("Leader", None)
+    scene.collection.objects.link(leader)
+    keyed(leader, "location", [(0, 0, 0), (2, 0, 0)])
+    follower = box(bpy, scene, "Constrained", (9, 0, 0))
+    follower.constraints.new("COPY_LOCATION").target = leader
+
+    # an armature whose bone turns deforms its mesh; the mesh object itself stays put
+    armature = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+    scene.collection.objects.link(armature)
+    bpy.context.view_layer.objects.active = armature
+    bpy.ops.object.mode_set(mode="EDIT")
+    bone = armature.data.edit_bones.new("Bone")
+    bone.head, bone.tail = (0, 0, 0), (0, 0, 1)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    skinned = box(bpy, scene, "Skinned", (0, -3, 0))
+    group = skinned.vertex_groups.new(name="Bone")
+    group.add(range(8), 1.0, "REPLACE")
+    skinned.modifiers.new("Armature", "ARMATURE").object = armature
+    pose = armature.pose.bones["Bone"]
+    pose.rotation_mode = "XYZ"
+    for frame, angle in zip(FRAMES, (0.0, 0.7)):
+        pose.rotation_euler = (angle, 0, 0)
+        pose.keyframe_insert("rotation_euler", frame=frame)
+
+    shaped = box(bpy, scene, "Shape Keys", (0, -6, 0))
+    shaped.shape_key_add(name="Basis")
+    key = shaped.shape_key_add(name="Bulge")
+    key.data[7].co = (2, 2, 2)
+    for frame, value in zip(FRAMES, (0.0, 1.0)):
+        key.value = value
+        key.keyframe_insert("value", frame=frame)
+
+    displaced = box(bpy, scene, "Displaced", (0, -9, 0), modifiers=("DISPLACE",))
+    for frame, value in zip(FRAMES, (0.0, 0.5)):
+        displaced.modifiers["Displace"].strength = value
+        displaced.modifiers["Displace"].keyframe_insert("strength", frame=frame)
+
+    scene.frame_set(3)
+    objects = [ob for ob in scene.objects if ob.type == "MESH"]
+    found = motion.motions(scene, objects)
+    assert {name: m.kind for name, m in found.items()} == {
+        "Keyed": "moves", "Turned": "moves", "Child": "moves", "Constrained": "moves",
+        "Skinned": "deforms", "Shape Keys": "deforms", "Displaced": "deforms"}
+    assert scene.frame_current == 3                     # the user's frame is kept
+    assert "'Skinned' deforms during the shot" in found["Skinned"].sentence()
+    # a shot that ends before the keys change sees nothing move
+    scene.frame_end = 1
+    assert motion.motions(scene, objects) == {}
+
+
+def animate_ball(scene, ball, frame_end=FRAMES[1], to_x=1.5):
+    scene.frame_start, scene.frame_end = FRAMES[0], frame_end
+    keyed(ball, "location", [tuple(CENTRE), (CENTRE[0] + to_x, CENTRE[1], CENTRE[2])], (FRAMES[0], frame_end))
+    scene.frame_set(FRAMES[0])
+
+
+def test_a_ball_animated_after_the_bake_gets_each_frames_own_shadow(bpy_clean, tmp_path, capfd):
+    bpy = bpy_clean
+    scene, floor, ball = floating_black_ball(bpy, tmp_path)
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8) == {"FINISHED"}
+    # animated after the bake: on frame 1 it is where the bake saw it, so the bake's hash still fits
+    animate_ball(scene, ball)
+    capfd.readouterr()
+
+    # the bake by name cannot serve it: one sentence, nothing set up
+    layers = sorted(layer.name for layer in scene.view_layers)
+    with pytest.raises(RuntimeError, match="'Sphere' moves during the shot .from frame 2.*cannot follow it"):
+        bpy.ops.platelight.setup_composite(method="BAKED")
+    assert sorted(layer.name for layer in scene.view_layers) == layers and not floor.is_shadow_catcher
+
+    # the default path-traces its shadows every frame, and says why
+    assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert "(catcher, cycles)" in said and "'Sphere' moves during the shot" in said
+    assert floor.is_shadow_catcher
+
+    # frame 8: the shadow is the ball's there, not where it was baked
+    scene.frame_set(FRAMES[1])
+    _image, passes = cs.render_with_passes(bpy, scene, tmp_path / "out")
+    ground, origin, rays = cs.ground_points(bpy, scene)
+    centre = np.array(ball.matrix_world.translation)
+    assert abs(centre[0] - CENTRE[0] - 1.5) < 1e-6
+    visible = np.isfinite(ground).all(axis=-1) & ~cs.sphere_hit(origin, rays, centre, R, margin=0.05)
+    near = visible & (np.linalg.norm(ground[..., :2] - centre[:2], axis=-1) < 2.0)
+    ratio = passes["Shadows"][..., :3].mean(axis=-1)
+    expected, stale = analytic_ratio(ground, centre), analytic_ratio(ground, CENTRE)
+    assert near.sum() > 300
+    error = np.abs(ratio[near] - expected[near])
+    assert np.median(error) < 0.02, np.median(error)
+    # contact darkening: the darkest point under the ball
+    assert abs(float(np.percentile(ratio[near], 1)) - float(np.percentile(expected[near], 1))) < 0.05
+    # shadow PSNR of plate x ratio against plate x analytic ratio (peak: the plate's brightest)
+    plate = cs.read_exr(tmp_path / "plate.exr", "RGB").mean(axis=-1)
+    mse = np.mean((plate[near] * (ratio[near] - expected[near])) ** 2)
+    assert 10 * np.log10(plate.max() ** 2 / mse) >= 35
+    # the stale shadow would be far off
+    assert np.median(np.abs(stale[near] - expected[near])) > 3 * np.median(error)
+
+
+def test_moving_cg_refuses_a_bake_and_eevee_motion_blur_in_one_sentence(bpy_clean, tmp_path):
+    bpy = bpy_clean
+    scene, floor, ball = floating_black_ball(bpy, tmp_path)
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    animate_ball(scene, ball)
+    with pytest.raises(RuntimeError, match="'Sphere' moves during the shot .from frame 2.: baked shadows need"):
+        bpy.ops.platelight.bake_shadows(height=32, samples=2)
+    assert not (tmp_path / "maps" / "_shadows").exists()
+
+    scene.render.use_motion_blur = True
+    layers = sorted(layer.name for layer in scene.view_layers)
+    with pytest.raises(RuntimeError, match="EEVEE's composite does not blur the shadows"):
+        bpy.ops.platelight.setup_composite(engine="EEVEE")
+    assert sorted(layer.name for layer in scene.view_layers) == layers and scene.render.use_motion_blur
+    # Cycles blurs the CG and the shadow catcher's pass together
+    assert bpy.ops.platelight.setup_composite() == {"FINISHED"}
+    assert floor.is_shadow_catcher
