@@ -1,5 +1,5 @@
-"""Display helpers: the sRGB transfer curve both ways, HDR → 8-bit sRGB previews and labelled
-contact sheets (OpenCV for PNG)."""
+"""Display helpers: the sRGB transfer curve both ways, HDR → 8-bit sRGB previews, labelled
+contact sheets (OpenCV for PNG), and the PSNR that compares a render with its reference."""
 from __future__ import annotations
 
 import os
@@ -26,6 +26,19 @@ def reinhard(image: np.ndarray, exposure: float = 1.0, white: float | None = Non
     mapped = lum / (1.0 + lum) if white is None else lum * (1 + lum / white ** 2) / (1.0 + lum)
     scale = np.where(lum > 0, mapped / np.maximum(lum, 1e-12), 0.0)
     return np.clip(rgb * scale[..., None], 0, 1)
+
+
+def psnr(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None,
+         peak: float | None = None) -> float:
+    """PSNR (dB) of ``image`` against ``reference`` over ``mask`` (default: every pixel), both
+    clipped to 0..``peak`` (default: the reference's 99.5th percentile, so that a few sun pixels
+    do not set the scale)."""
+    image, reference = np.asarray(image, np.float64), np.asarray(reference, np.float64)
+    if peak is None:
+        peak = float(np.percentile(reference, 99.5)) or 1.0
+    error = (np.clip(image, 0, peak) - np.clip(reference, 0, peak)) ** 2
+    mse = float(error[mask].mean() if mask is not None else error.mean())
+    return float(10 * np.log10(peak ** 2 / max(mse, 1e-20)))
 
 
 def srgb_to_linear(values: np.ndarray) -> np.ndarray:

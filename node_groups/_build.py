@@ -153,3 +153,21 @@ def io_nodes(graph):
     gin = graph.node("NodeGroupInput")
     gout = graph.node("NodeGroupOutput")
     return gin, gout
+
+
+def strength_against_film_exposure(strength_socket, scene):
+    """Drive an Emission's Strength to 1 / ``scene``'s Cycles film exposure. What a PlateLight
+    emission shows is already as filmed (the plate) or a ratio, and Cycles' film exposure would
+    scale it again on its way to the camera."""
+    tree = strength_socket.id_data
+    path = strength_socket.path_from_id("default_value")
+    tree.driver_remove(path)
+    driver = tree.driver_add(path).driver
+    driver.type = "SCRIPTED"
+    variable = driver.variables.new()
+    variable.name = "exposure"
+    variable.type = "SINGLE_PROP"
+    variable.targets[0].id_type = "SCENE"
+    variable.targets[0].id = scene
+    variable.targets[0].data_path = "cycles.film_exposure"
+    driver.expression = "1 / max(exposure, 1e-6)"     # a simple expression: no Python needed

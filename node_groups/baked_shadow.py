@@ -14,7 +14,7 @@ import bpy
 
 from .. import compat
 from ..addon import names
-from ._build import Graph, io_nodes, shader_group, sync_interface
+from ._build import Graph, io_nodes, shader_group, strength_against_film_exposure, sync_interface
 
 # A point counts as the one the panorama saw when it lies no farther than this beyond the
 # distance stored for its direction (relative, plus an absolute 1 cm for texels at the horizon).
@@ -86,7 +86,7 @@ def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.ty
     ratio.node_tree = group
     emit = g.node("ShaderNodeEmission")
     g.link(ratio.outputs["Ratio"], emit.inputs["Color"])
-    emit.inputs["Strength"].default_value = 1.0
+    strength_against_film_exposure(emit.inputs["Strength"], bpy.context.scene)
     out = g.node("ShaderNodeOutputMaterial")
     g.link(emit.outputs["Emission"], out.inputs["Surface"])
     return material

@@ -48,26 +48,41 @@ class Progress:
 
 
 @contextlib.contextmanager
-def blender_output(quiet: bool):
+def blender_output(quiet: bool, log_path=None):
     """While Blender works: its C-level stdout goes to stderr (stdout keeps only PlateLight's
-    summary), or, when ``quiet``, both its stdout and stderr go to /dev/null. Yields a stream to
-    the real stderr, for PlateLight's own lines inside the block (progress callbacks)."""
+    summary), or, when ``quiet``, both its stdout and stderr go to /dev/null, or, given
+    ``log_path``, both are appended to that file. Yields a stream to the real stderr, for
+    PlateLight's own lines inside the block (progress callbacks)."""
+    both = quiet or log_path is not None
     sys.stdout.flush()
     sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)] if quiet else [os.dup(1)]
-    target = os.open(os.devnull, os.O_WRONLY) if quiet else 2
-    log = os.fdopen(os.dup(saved[1] if quiet else 2), "w", buffering=1)
+    saved = [os.dup(1), os.dup(2)] if both else [os.dup(1)]
+    if log_path is not None:
+        target = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    else:
+        target = os.open(os.devnull, os.O_WRONLY) if quiet else 2
+    log = os.fdopen(os.dup(saved[1] if both else 2), "w", buffering=1)
+    # Python's own prints (operator reports among them) follow the descriptors too, also where a
+    # harness has replaced sys.stdout with a stream that bypasses them.
+    python_streams = sys.stdout, sys.stderr
     try:
         os.dup2(target, 1)
-        if quiet:
+        sys.stdout = open(1, "w", buffering=1, closefd=False)
+        if both:
             os.dup2(target, 2)
+            sys.stderr = open(2, "w", buffering=1, closefd=False)
         yield log
     finally:
         log.close()
         sys.stdout.flush()
         sys.stderr.flush()
+        if sys.stdout is not python_streams[0]:
+            sys.stdout.close()
+        if sys.stderr is not python_streams[1]:
+            sys.stderr.close()
+        sys.stdout, sys.stderr = python_streams
         os.dup2(saved[0], 1)
-        if quiet:
+        if both:
             os.dup2(saved[1], 2)
             os.close(target)
         for fd in saved:

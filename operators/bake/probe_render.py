@@ -130,6 +130,8 @@ class ProbeRenderer:
         # glass shows the sky it refracts (a transparent-glass film would lay the unrefracted sky there)
         state.set(cycles, "film_transparent_glass", False)
         state.set(cycles, "use_denoising", self.denoise)
+        # a probe holds the scene's radiance: the camera's exposure applies once, to the CG layer
+        state.set(cycles, "film_exposure", 1.0)
         state.set(cycles, "seed", 0)
         state.set(cycles, "use_animated_seed", False)
         # A box the size of one pixel: each texel is its own area, no blur from neighbours.
