@@ -97,7 +97,7 @@ def _interface(tree):
 
 def _template(behind):
     """The group's nodes as this version builds them, built once per machine (template_cache.py)
-    or session and copied after.
+    or Blender session and copied after.
     Every node added to a tree re-runs Blender's update of the whole tree, so a build takes time
     quadratic in its size: 9 s for the plain group's 972 nodes, 27 s with the layer behind's 1365
     (measured under load); a copy takes 0.01 s."""
@@ -130,7 +130,7 @@ def _build_if_needed(tree, behind):
     """(Re)build the group's nodes when they are from another version or were built with(out)
     the layer behind's look-ups that the folder now has(n't): those cost a mirror's shading
     points about 20 look-ups, which the groups of other objects never pay. Returns the group:
-    a copy of the session's template takes the group's place (its users, name and properties)
+    a copy of this Blender session's template takes the group's place (its users, name and properties)
     where the interfaces agree; otherwise (a group from another version) it is rebuilt in place."""
     if tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2 and bool(tree.get(BEHIND_KEY)) == behind:
         return tree

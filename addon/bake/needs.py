@@ -101,7 +101,7 @@ def owner_visibility(materials: list[Lobes], owner_shadows: bool) -> str:
     """What the owner is to its own probe's rays. A sharp reflector or a glossy metal reads the
     floor under itself through parallax-corrected specular look-ups, so its probe shows that
     floor as it is (OWNER_INDIRECT: a mirror sphere gained 2.1 dB at 480x270; metal spheres of
-    roughness 0.3 / 0.4 1.6 / 0.3 dB, session 24; docs/decisions.md). An object with a diffuse
+    roughness 0.3 / 0.4 1.6 / 0.3 dB; docs/decisions.md). An object with a diffuse
     term keeps OWNER_SHADOWS: the full occlusion darkened a matte ball's lower half (34.65 ->
     31.79 dB from the centre's irradiance map; 38.0 -> 37.2 dB with the irradiance grid); so
     does a metal whose lobe reads the diffuse map: seen from the centre, the floor the owner
