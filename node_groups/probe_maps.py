@@ -33,16 +33,7 @@ from . import template_cache
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 11                         # 3: parallax-corrected specular look-ups (distance map)
-                                     # 4: diffuse look-ups from the irradiance grid
-                                     # 5: the grid's atlas read by Environment Textures (EEVEE)
-                                     # 6: glossy look-ups narrowed by their footprint
-                                     # 7: anisotropic look-ups along the Specular Spread
-                                     # 8: the sun through the lobe, the other maps sunless
-                                     # 9: the view-dependent ladder (glossy3, narrowed look-ups)
-                                     # 10: a dielectric's sun lobe normalised by A, every map but
-                                     #     the mirror's read sunless by the specular lobe
-                                     # 11: the layer behind the first surface (when baked)
+VERSION = 11                         # a group built by another version is rebuilt
 DISTANCE_BEHIND = behind_name(DISTANCE_NAME)   # the nodes reading the layer behind's distance map
 BEHIND_FILES = {behind_name(name): name for name in BEHIND_MAPS}
 BEHIND_KEY = "platelight_behind"     # on the group: built with the layer behind's look-ups
