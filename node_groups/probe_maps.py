@@ -90,8 +90,7 @@ def _template(behind):
     """The group's nodes as this version builds them, built once per machine (template_cache.py)
     or Blender session and copied after.
     Every node added to a tree re-runs Blender's update of the whole tree, so a build takes time
-    quadratic in its size: 9 s for the plain group's 972 nodes, 27 s with the layer behind's 1365
-    (measured under load); a copy takes 0.01 s."""
+    quadratic in its size, and a copy almost none (docs/decisions.md, "Probe groups built once")."""
     name = names.PROBE_GROUP_TEMPLATE + (" Behind" if behind else "")
     template = bpy.data.node_groups.get(name)
     if template is not None and (template.bl_idname != "ShaderNodeTree" or template.library is not None
@@ -637,8 +636,8 @@ def _irradiance_grid(g, direction):
     atlas_v = g.math("DIVIDE", g.math("MULTIPLY_ADD", v, height, pad), g.math("ADD", height, 2.0 * pad))
     # The atlas is read by Environment Texture nodes along the direction whose equirect (u, v) is
     # the atlas position: EEVEE samples an Image Texture with mipmaps chosen from screen-space
-    # derivatives, which jump where the tile index changes (grid lines across the object:
-    # 35.0 -> 28.5 dB measured), while its Environment Texture reads the full-resolution level.
+    # derivatives, which jump where the tile index changes (grid lines across the object), while
+    # its Environment Texture reads the full-resolution level.
     elevation = g.math("MULTIPLY", g.math("SUBTRACT", atlas_v, 0.5), math.pi)
     cos_el, sin_el = g.math("COSINE", elevation), g.math("SINE", elevation)
     total = None
