@@ -6,7 +6,7 @@ scripting contract), so a name changed here changes it everywhere and nowhere el
 # --- shader node groups and the material's nodes (node_groups/sbrdf*.py, probe_maps.py)
 SBRDF_GROUP = "PlateLight SBRDF"            # the paper's SBRDF (Eq 1-7); also the node's name
 PROBE_GROUP_PREFIX = "PlateLight Probe "    # + probe folder: the group sampling its four maps
-# The probe group's nodes as built once per session (the dot hides it; no users: never saved)
+# The probe group's nodes as built once per Blender session (the dot hides it; no users: never saved)
 PROBE_GROUP_TEMPLATE = ".PlateLight Probe Template"
 PROBE_NODE = "PlateLight Probe"             # the material's node holding that group
 PROBE_CENTRE_NODE = "PlateLight Probe Centre"   # in a probe group: the bake's centre (parallax)

@@ -78,9 +78,8 @@ def build_phantom_plate_material(albedo_image, radiance_image, world_to_camera, 
     # own distance test); the radiance map's A is 0 where the camera saw no phantom
     seen = seen_at(g, distance, stored.outputs["Alpha"])
     # a point the camera saw takes the albedo there; a hidden one its own phantom's (names.
-    # HIDDEN_ALBEDO_KEY): the floor behind a red box took the box's red from the pixel in front (a
-    # mirror beside the box, 960x540, 16 samples: 30.0 dB object, 41.7 after); a phantom without
-    # the property (made after the set-up) takes the fallback
+    # HIDDEN_ALBEDO_KEY), not the colour of the pixel in front of it; a phantom without the
+    # property (made after the set-up) takes the fallback
     known = g.math("MULTIPLY", g.math("MULTIPLY", tex.outputs["Alpha"], inside), seen)
     own = g.node("ShaderNodeAttribute", attribute_type="OBJECT", attribute_name=names.HIDDEN_ALBEDO_KEY)
     hidden = g.mix("RGBA", g.math("GREATER_THAN", own.outputs["Alpha"], 0.5),
@@ -100,8 +99,7 @@ def build_phantom_plate_material(albedo_image, radiance_image, world_to_camera, 
 def _held_out(g, surface):
     """``surface``, or a holdout for camera rays where the layer holds the phantoms out: Cycles
     evaluates a held-out object's material for every camera ray that meets it, and skips a mix's
-    branch whose weight is 0 (the baked composite's CG layer at 960x540: 5.96 s a frame at 16
-    samples with the whole material, 3.83 with this)."""
+    branch whose weight is 0 (docs/decisions.md, "Filmed phantoms")."""
     switch = g.node("ShaderNodeAttribute", attribute_type="VIEW_LAYER", attribute_name=names.HELD_OUT_PHANTOMS_KEY)
     camera = g.node("ShaderNodeLightPath").outputs["Is Camera Ray"]
     mix = g.node("ShaderNodeMixShader")
@@ -122,8 +120,8 @@ def _filmed(g, diffuse, uv, in_front, inside, seen, stored, radiance_image):
 
     A point in front of the camera but outside its frame gets the frame's edge (the phantom there
     carried on, as EXTEND repeats it): path-traced instead, the far floor beyond a frame's top
-    edge was the one noisy band in a mirror's otherwise noise-free reflection, and the denoiser
-    left it noisy (960x540, 16 CG samples: 41.1 dB object against 42.2 path-tracing it all)."""
+    edge is a noisy band in a mirror's otherwise noise-free reflection, which the denoiser leaves
+    noisy."""
     colour = g.node("ShaderNodeTexImage", image=radiance_image, extension="EXTEND", interpolation="Linear")
     g.link(uv, colour.inputs["Vector"])
     beyond_frame = g.math("SUBTRACT", 1.0, inside)

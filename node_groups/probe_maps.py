@@ -33,16 +33,7 @@ from . import template_cache
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 11                         # 3: parallax-corrected specular look-ups (distance map)
-                                     # 4: diffuse look-ups from the irradiance grid
-                                     # 5: the grid's atlas read by Environment Textures (EEVEE)
-                                     # 6: glossy look-ups narrowed by their footprint
-                                     # 7: anisotropic look-ups along the Specular Spread
-                                     # 8: the sun through the lobe, the other maps sunless
-                                     # 9: the view-dependent ladder (glossy3, narrowed look-ups)
-                                     # 10: a dielectric's sun lobe normalised by A, every map but
-                                     #     the mirror's read sunless by the specular lobe
-                                     # 11: the layer behind the first surface (when baked)
+VERSION = 11                         # a group built by another version is rebuilt
 DISTANCE_BEHIND = behind_name(DISTANCE_NAME)   # the nodes reading the layer behind's distance map
 BEHIND_FILES = {behind_name(name): name for name in BEHIND_MAPS}
 BEHIND_KEY = "platelight_behind"     # on the group: built with the layer behind's look-ups
@@ -97,10 +88,9 @@ def _interface(tree):
 
 def _template(behind):
     """The group's nodes as this version builds them, built once per machine (template_cache.py)
-    or session and copied after.
+    or Blender session and copied after.
     Every node added to a tree re-runs Blender's update of the whole tree, so a build takes time
-    quadratic in its size: 9 s for the plain group's 972 nodes, 27 s with the layer behind's 1365
-    (measured under load); a copy takes 0.01 s."""
+    quadratic in its size, and a copy almost none (docs/decisions.md, "Probe groups built once")."""
     name = names.PROBE_GROUP_TEMPLATE + (" Behind" if behind else "")
     template = bpy.data.node_groups.get(name)
     if template is not None and (template.bl_idname != "ShaderNodeTree" or template.library is not None
@@ -130,7 +120,7 @@ def _build_if_needed(tree, behind):
     """(Re)build the group's nodes when they are from another version or were built with(out)
     the layer behind's look-ups that the folder now has(n't): those cost a mirror's shading
     points about 20 look-ups, which the groups of other objects never pay. Returns the group:
-    a copy of the session's template takes the group's place (its users, name and properties)
+    a copy of this Blender session's template takes the group's place (its users, name and properties)
     where the interfaces agree; otherwise (a group from another version) it is rebuilt in place."""
     if tree.get(VERSION_KEY) == VERSION and len(tree.nodes) > 2 and bool(tree.get(BEHIND_KEY)) == behind:
         return tree
@@ -646,8 +636,8 @@ def _irradiance_grid(g, direction):
     atlas_v = g.math("DIVIDE", g.math("MULTIPLY_ADD", v, height, pad), g.math("ADD", height, 2.0 * pad))
     # The atlas is read by Environment Texture nodes along the direction whose equirect (u, v) is
     # the atlas position: EEVEE samples an Image Texture with mipmaps chosen from screen-space
-    # derivatives, which jump where the tile index changes (grid lines across the object:
-    # 35.0 -> 28.5 dB measured), while its Environment Texture reads the full-resolution level.
+    # derivatives, which jump where the tile index changes (grid lines across the object), while
+    # its Environment Texture reads the full-resolution level.
     elevation = g.math("MULTIPLY", g.math("SUBTRACT", atlas_v, 0.5), math.pi)
     cos_el, sin_el = g.math("COSINE", elevation), g.math("SINE", elevation)
     total = None

@@ -172,14 +172,14 @@ def _build(tree):
     narrow, streak, alphas = _anisotropy(g, inp, fresnel)
     gloss = g.math("ADD", narrow, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, narrow), fresnel))
     falloff_f = g.math("ADD", falloff, g.math("MULTIPLY", g.math("SUBTRACT", 1.0, falloff), fresnel))
-    # The maps already hold the lobe's integral, so the paper's cosine g' darkens every rim (a
-    # mirror sphere measured 19 dB against path tracing); the default leaves it out (docs/decisions.md).
+    # The maps already hold the lobe's integral, so the paper's cosine g' darkens every rim; the
+    # default leaves it out (docs/decisions.md, "Paper Falloff").
     falloff_f = g.math("MULTIPLY_ADD", inp["Paper Falloff"], g.math("SUBTRACT", falloff_f, 1.0), 1.0)
 
     # Weights of the terms.
     alpha = inp["Alpha"]
     one_minus_spec = g.color_op("SUBTRACT", (1.0, 1.0, 1.0, 1.0), spec_albedo)
-    # Energy: by default light reflected by the specular layer no longer reaches the diffuse one
+    # Energy: by default light reflected by the specular layer does not reach the diffuse one
     # (rho_d (1 - rho_s'), as Blender's Principled BSDF layers them); the paper adds both in full.
     layered = g.color_op("MULTIPLY", inp["Diffuse Albedo"], one_minus_spec)
     diffuse_albedo = g.mix("RGBA", inp["Paper Falloff"], layered, inp["Diffuse Albedo"])

@@ -1,5 +1,5 @@
-"""Built node groups kept on disk between sessions, so a large group is built once per machine
-and Blender release, not in every session (probe_maps.py: a probe group with the layer behind's
+"""Built node groups kept on disk between Blender runs, so a large group is built once per machine
+and Blender release, not in every Blender session (probe_maps.py: a probe group with the layer behind's
 look-ups has about 1400 nodes and takes 10-30 s to build, since Blender re-runs its update of
 the whole tree for every node added; appending it from a .blend takes a fraction of a second).
 

@@ -109,18 +109,15 @@ def shadows_hash(scene, height, samples, method, denoiser) -> str:
     seen = sorted((ob.name_full, digest(ob)) for ob in scene.objects
                   if not ob.hide_render and (ob.type in GEOMETRY_TYPES or ob.type == "LIGHT"))
     cycles = scene.cycles
-    # Cycles' denoiser adds nothing: the bakes from before the choice stay current
+    # Cycles' denoiser adds nothing to the hash: a bake whose record names no denoiser stays current
     settings = [int(height), int(samples), str(method)] + ([] if denoiser == "CYCLES" else [str(denoiser)])
     return content_hash({"world": content_hash(world_description(scene)), "seen": seen, "settings": settings,
                          "render": [cycles.max_bounces, bake_diffuse_bounces(cycles), cycles.glossy_bounces,
                                     cycles.transmission_bounces]})
 
 
-# The bake's diffuse bounces at most: the phantom's light, the CG's shadow and the CG's first
-# bounce onto the phantom (colour bleeding) need 2. At Cycles' default 4 the catcher's ratio came
-# out lighter than the truth (which has 4): 0.5 % of the plate on average against 0.14 % with 3,
-# shadow 43.47 against 44.61 dB (docs/decisions.md, "The shadow bake's diffuse bounces, its
-# guides unfiltered")
+# The bake's diffuse bounces at most: colour bleeding needs 2, and more biases the catcher's ratio
+# light (docs/decisions.md, "The shadow bake's diffuse bounces, its guides unfiltered")
 SHADOW_BAKE_DIFFUSE_BOUNCES = 3
 
 
@@ -130,8 +127,8 @@ def bake_diffuse_bounces(cycles) -> int:
 
 
 def recorded_denoiser(record) -> str:
-    """Who denoised the bake ``record`` describes: Cycles where it names none (a bake from
-    before the choice, or TWO_RENDERS)."""
+    """Who denoised the bake ``record`` describes: Cycles where it names none (TWO_RENDERS, or a
+    record written without the field)."""
     return record.get("denoiser") or "CYCLES"
 
 
@@ -152,14 +149,14 @@ METHODS = (("CATCHER", "Shadow Catcher", "One render of Cycles' Shadow Catcher p
             "denoised as such"),
            ("TWO_RENDERS", "Two Renders", "The light with the CG and without it, each denoised, divided"))
 DEFAULT_METHOD = "CATCHER"
-# Who denoises the CATCHER render (TWO_RENDERS: always Cycles). The compositor gives Cycles'
-# ratio (PSNR 43.4700 both at 512 x 16) about 2 s sooner: OIDN runs on that pass alone
+# Who denoises the CATCHER render (TWO_RENDERS: always Cycles); the compositor gives Cycles' ratio
+# sooner, running OIDN on that pass alone (docs/bench/shadow_bake_denoiser_960x540.md)
 DENOISERS = (("COMPOSITOR", "Compositor", "Cycles' denoiser off, the compositor's Denoise node on the "
               "Shadow Catcher pass alone (with the scene's denoiser settings)"),
              ("CYCLES", "Cycles", "Cycles' own denoiser, which also denoises the Combined and matte passes"))
 DEFAULT_DENOISER = "COMPOSITOR"
-# Below this the catcher's per-path ratio is too poor a signal for OIDN: at 1 spp its shadow was
-# 9.5 dB below the two renders' on the benchmark (27.3 against 36.9 dB); from 4 up within 0.2
+# Below this the catcher's per-path ratio is too poor a signal for OIDN
+# (docs/bench/shadow_bake_960x540.md)
 CATCHER_MIN_SAMPLES = 4
 
 

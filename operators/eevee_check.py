@@ -1,10 +1,10 @@
-"""Can this Blender render with EEVEE? Asked once per session, in a child process.
+"""Can this Blender render with EEVEE? Asked once per Blender session, in a child process.
 
 In the window a GL context always exists. Headless (``blender -b``, the bpy module) EEVEE needs
 one from EGL; where none can be made (no GPU driver, no software GL) Blender does not raise: the
 process prints EGL errors and exits (measured with __EGL_VENDOR_LIBRARY_DIRS pointing nowhere:
 bpy.ops.render.render never returned). So the question is put to a child Blender that renders
-an 8×8 EEVEE image; the answer is cached for the session.
+an 8×8 EEVEE image; the answer is cached for the Blender session.
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def _child_command(png: str) -> list[str]:
 
 
 def eevee_available(timeout: float = 300.0) -> bool:
-    """True when EEVEE can render in this session (always in the window)."""
+    """True when EEVEE can render in this Blender session (always in the window)."""
     global _answer
     if not bpy.app.background:
         return True

@@ -22,17 +22,14 @@ from .common import GEOMETRY_TYPES
 from .common import data_folder
 
 # The white render's samples (then OIDN, its guides unfiltered: a white diffuse's albedo and a
-# phantom's normal have no noise to filter): its noise becomes albedo noise, which the plate's own
-# grain dwarfs and which reaches the composite only where rays path-trace a phantom the camera did
-# not film. At 960x540 on 2 cores the set-up took 18.9 s at 16 samples with prefiltered guides,
-# 13.9 s unfiltered, 6.4 s at 4 samples unfiltered (the diffuse benchmark's whole per-frame cost
-# 2.18 -> 1.63 s, its PSNR unchanged); the albedo 0.5 % median, 2.2 % 99th percentile from the
-# 16-sample one (16 against 32 samples: 0.15 % / 0.7 %)
+# phantom's normal have no noise to filter): its noise, which the plate's own grain dwarfs, reaches
+# the composite only where rays path-trace a phantom the camera did not film (docs/decisions.md,
+# "The set-up's white render")
 ALBEDO_SAMPLES = 4
 # The plate is smoothed by this Gaussian (pixels, within the phantoms) before the CG's rays see it:
 # its grain or render noise is no part of the real surface, and a mirror's reflection, which
-# minifies the plate, turned it into noise the CG's samples had to average (960x540 mirror, 16 CG
-# samples: 41.9 dB object unsmoothed, 42.8 smoothed by 1.5 px, as by 2 px or with one flat colour)
+# minifies the plate, turns it into noise the CG's samples must average (docs/decisions.md,
+# "Filmed phantoms")
 FILMED_SMOOTHING = 1.5
 MIN_SHADING = 1e-4       # below this the white render saw no light: the albedo is unknown there
 # Albedos above 1 are kept up to this: a plate brighter than the scene's lights can make (probe

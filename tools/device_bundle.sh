@@ -6,8 +6,8 @@
 #
 # Why the kernel: bpy 5.2's wheel has CUDA cubins for sm_50-86 and sm_120 only. On an H100/H200
 # (sm_90) Cycles falls back to the compute_75 PTX and the driver JIT-compiles it on the first
-# render: on an H200 a 64x64, 4-spp render had not finished after 220 s (session 28), and a
-# bench-gpu run of 390 s finished no render. ptxas (NVIDIA's pip wheel, runs on any x86-64 CPU)
+# render, which outlasts a short device lease (docs/decisions.md, "The GPU benchmark needs a
+# Cycles kernel for the GPU it runs on"). ptxas (NVIDIA's pip wheel, runs on any x86-64 CPU)
 # compiles the same PTX into the missing cubin here, once, and the device never JITs.
 #
 # Usage: tools/device_bundle.sh [SM]   (SM default 90; run `make venv` first)
@@ -17,7 +17,7 @@
 #   run(command="mkdir -p /tmp/plc && cp .gpuchunk/pK/* /tmp/plc/", carry=[".gpuchunk/pK"])   K = 0..N-1
 #   run(command="cp .gpuchunk/pN/* /tmp/plc/ && bash .gpuchunk/final/device_bench.sh",
 #       carry=[".gpuchunk/pN", ".gpuchunk/final"], timeout_s=600)
-# Session 28: six parts, ~5 s of device time each after the machine's start.
+# About six parts, ~5 s of device time each after the machine's start.
 set -euo pipefail
 SM=${1:-90}
 ROOT=$(cd "$(dirname "$0")/.." && pwd)

@@ -100,13 +100,11 @@ OWNER_INDIRECT = "indirect"    # hidden from the probe's camera only: it also bl
 def owner_visibility(materials: list[Lobes], owner_shadows: bool) -> str:
     """What the owner is to its own probe's rays. A sharp reflector or a glossy metal reads the
     floor under itself through parallax-corrected specular look-ups, so its probe shows that
-    floor as it is (OWNER_INDIRECT: a mirror sphere gained 2.1 dB at 480x270; metal spheres of
-    roughness 0.3 / 0.4 1.6 / 0.3 dB, session 24; docs/decisions.md). An object with a diffuse
-    term keeps OWNER_SHADOWS: the full occlusion darkened a matte ball's lower half (34.65 ->
-    31.79 dB from the centre's irradiance map; 38.0 -> 37.2 dB with the irradiance grid); so
-    does a metal whose lobe reads the diffuse map: seen from the centre, the floor the owner
-    darkens fills the directions straight down, and a lobe that wide blurs it over the lower
-    half (roughness 0.5 / 0.6: +0.9 / +1.4 dB with the shadow-only owner)."""
+    floor as it is (OWNER_INDIRECT). An object with a diffuse term keeps OWNER_SHADOWS: the full
+    occlusion darkens a matte ball's lower half; so does a metal whose lobe reads the diffuse
+    map: seen from the centre, the floor the owner darkens fills the directions straight down,
+    and a lobe that wide blurs it over the lower half (the numbers: docs/decisions.md, "A sharp
+    reflector's or glossy metal's probe sees its owner with indirect rays")."""
     if not owner_shadows:
         return OWNER_HIDDEN
     sharp = needs_sharp_specular(materials) or is_glossy_metal(materials)

@@ -1,10 +1,9 @@
 """How large a mirror-like object's probe must be: sized to the object on screen.
 
 A mirror sphere D pixels across shows the whole panorama on its disk, so a probe much smaller
-than D blurs its reflection. Measured (docs/bench/composite.md, mirror sphere 122 px across at
-480x270, 16-spp composite against path-traced truth): probe and specular map 64 px high 32.3 dB
-object PSNR, 128 px 37.3 dB, 256 px 39.2 dB, 512 px 39.1 dB. So twice the diameter is enough and
-more buys nothing; the bake's time grows with the probe's area (16 spp: 8 s at 256, 53 s at 512).
+than D blurs its reflection. Twice the diameter is enough and more buys nothing, while the
+bake's time grows with the probe's area (docs/decisions.md, "A mirror's probe is sized to the
+mirror on screen").
 Objects that only need blurred maps (diffuse, glossy) keep the scene's Probe Height.
 
 The projection follows Blender's ``Camera.view_frame()``: the film frame's four corners in
@@ -50,13 +49,9 @@ def auto_probe_height(diameter_px: float, minimum: int, maximum: int = DEFAULT_M
     return int(min(max(height, minimum), maximum))
 
 
-# A probe below SAMPLE_ROWS rows is cheap, and its noise reaches a glossy reflection whole: the
-# composite benchmark's glossy copper (64-row probe, 480x270, 16 CG spp) scores 37.34 dB object PSNR
-# with 16 probe spp, 37.57 with 32, 37.66 with 64 and 37.67 with 256 (docs/decisions.md, "Probe
-# samples"). So a smaller probe gets more samples, as many as keep its rays at a SAMPLE_ROWS
-# probe's, but at most MAX_SAMPLE_FACTOR times Probe Samples: 2 takes 70 % of the gain and keeps
-# the default probe's bake near issue 4's 0.5 s per object-frame (docs/bake.md); larger (mirror)
-# probes keep Probe Samples.
+# A small probe's noise reaches a glossy reflection whole, so a probe below SAMPLE_ROWS rows gets
+# as many samples as keep its rays at a SAMPLE_ROWS probe's, at most MAX_SAMPLE_FACTOR times Probe
+# Samples (docs/decisions.md, "Probe samples"); larger (mirror) probes keep Probe Samples.
 SAMPLE_ROWS = 128
 MAX_SAMPLE_FACTOR = 2
 

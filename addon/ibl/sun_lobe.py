@@ -21,9 +21,8 @@ gives back (given_back): all of it for a dielectric, whose specular weight rho_s
 its directional albedo E(mu) (the conversion fits it so), so the lobe integrates to 1 like a map's;
 F (1 - A) / A for a metal, as Cycles' multiscatter GGX gives it, because a metal's rho_s' holds
 only the head-on loss. The alphas are widened by the sun's own size, so a narrow lobe shows a disc,
-not a point. (Until session 23 every lobe gave back F (1 - A) / A and the diffuse map kept the sun
-for 1 - F of the lobe, fitted when a dielectric's rho_s was still F0: since its rho_s' follows
-E(mu) that counted masking's loss twice; docs/decisions.md, "The sun through a rough lobe".)
+not a point. (A dielectric's rho_s' already follows E(mu), so giving it F (1 - A) / A too would
+count masking's loss twice; docs/decisions.md, "The sun through a rough lobe".)
 
 On a bare metal sphere under the bundled city HDRI (brute-force GGX of the whole HDRI as the
 truth; tests/bench/bench_sun_lobe.py, docs/bench/sun_lobe.md) this is the largest single gain of

@@ -6,42 +6,35 @@ Mapping (documented in docs/sbrdf.md):
   reflection lobe at normal incidence holds half its energy within the same angle as the map's
   Phong lobe around R, (s+1)/(2 pi) cos^s: specular r = 0, glossy2 (s = 64, 8.35 deg) r = 0.270,
   glossy1 (s = 8, 22.2 deg) r = 0.443, diffuse (s = 1, 45 deg) r = 0.644; linear between.
-  (The first mapping, s = 2/alpha^2 - 2, is the Blinn exponent of a lobe around the half vector,
-  whose reflection lobe is twice as wide: it put the maps at r = 0.418, 0.669, 0.904 and gave a
-  roughness-0.3 copper 28 % of the mirror map, a sharp sun where the truth has a soft one:
-  26.5 dB object PSNR against the catcher's 40.7 at 960x540.)
+  (Not s = 2/alpha^2 - 2: that Blinn exponent belongs to a lobe around the half vector, whose
+  reflection lobe is twice as wide.)
 - Fresnel from roughness, f = c (1 - cos)^(1/phi - 1) (c: Fresnel Peak), fitted by least squares
   at each roughness knot to the rise towards grazing of the layer's directional albedo E(cos):
   - a dielectric (IOR 1.5, Cycles' multiscatter GGX): E(cos) = E(1) + (1 - E(1)) f, and rho_s
     scaled by E(1) / F0 (masking: a roughness-1 plastic reflects 1.5 % head-on, not F0's 4 %).
     Polished, c = 0.87 and k = 4.4 (Fresnel's own curve); rough, c = 0.05: its rim reflects 9 %,
-    not the mirror's 100 %. The paper's c = 1 with one exponent could not have both: fitted to
-    the normalised rise it took k = 23 at roughness 0.5 and reflected 4 % where GGX reflects 9 %
-    (cos 0.35, 2.3x too little); a Schlick rise (k = 5) on a roughness-1 sphere took 60 % of the
-    diffuse at its rim.
+    not the mirror's 100 %. The paper's c = 1 with one exponent cannot have both
+    (docs/decisions.md, "A dielectric's Fresnel").
   - a metal: c and k fitted to the rise of the metal's own multiscatter albedo (Schlick's
     Fresnel on the microfacets, F0 0.3-0.9): c = 1, k = 5 polished, c = 0.51 at roughness 0.3,
     0.21 at 0.6, 0.14 rough; the converted metal follows E within 2 % from cos 0.1 to 1 up to
-    roughness 0.7. (c = 1 with the dielectric's normalised rise, as before, missed it by up to
-    25 %: a roughness-0.3 copper 7 % dark at cos 0.4 and 25 % bright at 0.1.)
+    roughness 0.7 (docs/decisions.md, "A metal's rim").
   - a metal's ρs is base × E(1)/F0 too: W + F_avg (1 - W), W white GGX's single-scattering
     albedo head-on, F_avg = F0 + (1 - F0)/21 (what Cycles' multiscatter gives back); 1 polished,
-    0.80 for F0 0.7 at roughness 1. Without it a roughness-1 metal sphere came out 23 % too
-    bright (docs/decisions.md, "A rough metal reflects less than its F0 head-on").
+    0.80 for F0 0.7 at roughness 1 (docs/decisions.md, "A rough metal reflects less than its F0
+    head-on").
   Blended by metallic.
 - rougher than the diffuse map (r > 0.644, glossiness 0): the lobe's peak is pulled from the
   mirror direction to the normal, Cx = Cy = -(1 - t), t = (r - 0.644) / (1 - 0.644), because a
   GGX lobe's light comes from ever nearer N as it widens and at r = 1 (alpha = 1, D uniform)
-  from around N itself, whatever the view (lobe_tilt.kept_lobe_centroid). The benchmark's matte
-  sphere (roughness 1) read its 4 % coat along the tilted mirror direction: object 40.1 dB at
-  480x270, 41.9 with the peak at N (docs/decisions.md, "A rough lobe peaks at the normal").
+  from around N itself, whatever the view (lobe_tilt.kept_lobe_centroid; docs/decisions.md, "A
+  rough lobe peaks at the normal").
 - alpha = principled alpha * (1 - transmission (1 - metallic)); IOR as is; emission as is.
 - anisotropy: as is, with Cx = Cy = -1 (the peak at the mirror direction) and the glossiness of
   the roughness; the group reads the maps at the narrow axis's glossiness along the streak
-  (addon/ibl/anisotropy.py). The Lafortune Cy = -(1 - 0.9 a) this once gave moves the peak
-  towards the normal instead of stretching the lobe: the benchmark's brushed sphere (roughness
-  0.3, anisotropy 0.8) came out at 18.1 dB object PSNR, a round lobe 22.9 dB (the catcher 40.0;
-  docs/decisions.md). The anisotropic rotation sets Tangent Rotation (2 pi * rotation).
+  (addon/ibl/anisotropy.py); not a Lafortune Cy = -(1 - 0.9 a), which moves the peak towards the
+  normal instead of stretching the lobe (docs/decisions.md). The anisotropic rotation sets
+  Tangent Rotation (2 pi * rotation).
 """
 from __future__ import annotations
 

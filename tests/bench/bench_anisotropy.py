@@ -6,7 +6,7 @@ the SBRDF group's does, seen from three directions under a bundled HDRI. Truth: 
 the probe's texels (256 rows, tests/reference.py's brute force) integrated with Principled's anisotropic GGX (alphas r²/aspect along
 the tangent, r²·aspect across it, aspect = √(1 − 0.9 a); D and Smith G2 with the projected alpha).
 PlateLight: the four maps (Phong lobes), looked up with the look-up tilt either as one round lobe
-at the roughness's glossiness (before session 12) or as the shader does now (addon/ibl/anisotropy.py:
+at the roughness's glossiness (*round*) or as the shader does (*streak*: addon/ibl/anisotropy.py:
 five look-ups along the streak at the narrow axis's glossiness). PSNR over the sphere's pixels, peak
 = the HDRI's 90th percentile by solid angle (bench_lobes.display_peak, as docs/bench/composite.md).
 

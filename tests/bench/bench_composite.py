@@ -43,7 +43,7 @@ from support import compat  # noqa: E402
 
 W, H = 128, 72
 TRUTH_SAMPLES = int(os.environ.get("PLATELIGHT_BENCH_TRUTH_SPP", 512))
-# Rows kept from before rows recorded their truth's samples were scored against 256-spp truths.
+# A row that does not record its truth's samples was scored against a 256-spp truth.
 LEGACY_TRUTH_SAMPLES = 256
 HDRI = "city"
 CACHE = support.REPO / "bench_out" / "composite"
@@ -56,7 +56,7 @@ MATERIALS = {
     "rough metal": dict(colour=(0.7, 0.7, 0.7), roughness=0.6, metallic=1.0),
 }
 # setup_composite's arguments per route (the rest are its defaults)
-# Since session 29 the defaults path-trace a metal's Principled twin for Cycles' camera; the routes
+# The defaults path-trace a metal's Principled twin for Cycles' camera; the routes
 # about the SBRDF's own shading pin it (metals="SBRDF"), and so do the *(SBRDF)* routes
 SBRDF = dict(metals="SBRDF")
 SETUP = {"sbrdf": {}, "sbrdf_ggx": SBRDF, "sbrdf_phong": SBRDF, "sbrdf_paper": SBRDF, "lamps": {}, "sunsky": {},
@@ -71,8 +71,7 @@ SETUP = {"sbrdf": {}, "sbrdf_ggx": SBRDF, "sbrdf_phong": SBRDF, "sbrdf_paper": S
 # the shot's shadows baked once
 BAKED_ROUTES = ("sbrdf_baked", "sbrdf_eevee_baked", "cycles_baked", "sbrdf_baked_sbrdf", "sbrdf_baked_replica")
 # The default route shows the phantoms as a user's scene does by default: the plate on them
-# (Phantom Plate; with baked shadows the CG's rays see the filmed plate, shadowed, since session
-# 31). Every other route keeps the floor's and box's own materials, exact replicas of the truth's.
+# (Phantom Plate; with baked shadows the CG's rays see the filmed plate, shadowed). Every other route keeps the floor's and box's own materials, exact replicas of the truth's.
 PLATE_PHANTOM_ROUTES = ("sbrdf_baked",)
 # Probes are view-independent: in a shot where the camera moves and the objects stand still (the
 # paper's AR case) one bake serves every frame. Times are reported per frame of such a shot too.
@@ -361,14 +360,14 @@ SHOT_ROUTES = (("platelight", "sbrdf", (4, 16)), ("platelight baked", "sbrdf_bak
 EXTRA_ROUTES = {"layered": ("platelight layered", "sbrdf_layered", (16,)),
                 # the glossy maps blurred with GGX's lobes (scene setting Glossy Lobes)
                 "ggx": ("platelight ggx lobes", "sbrdf_ggx", (4, 16)),
-                # the four Phong maps read round (the default before the view-dependent look-ups)
+                # the four Phong maps read round (the paper's lobes)
                 "phong": ("platelight phong lobes", "sbrdf_phong", (4, 16)),
                 # the Principled sphere path-traced in the CG layer over the baked shadows
                 "principled": ("principled baked", "cycles_baked", (4, 16)),
-                # a metal shaded by its SBRDF (the default before session 29; a dielectric's default)
+                # a metal shaded by its SBRDF (a dielectric's default)
                 "sbrdf": ("platelight (SBRDF)", "sbrdf_sbrdf", (4, 16)),
                 "sbrdf_baked": ("platelight baked (SBRDF)", "sbrdf_baked_sbrdf", (1, 4, 16)),
-                # the default route before session 31: the phantoms' own (replica) materials, path-traced
+                # the phantoms' own (replica) materials, path-traced
                 "replica": ("platelight baked (replica phantoms)", "sbrdf_baked_replica", (1, 4, 16, 64))}
 GLOSSY_LOBES = {"sbrdf_ggx": "ggx", "sbrdf_phong": "phong"}     # the routes that set Glossy Lobes
 SHOT_REFERENCE = "catcher"
@@ -440,7 +439,7 @@ def shot_truths(bpy, hdri_path, name, material, box, folder):
 
 def composite_shot(bpy, hdri_path, material, box, route, samples, plate_path, out_dir):
     """Set up the route once (the bake serves the shot), then render the shot's frames in one
-    session with persistent data. Returns (images, bake_s, setup_s, [seconds per frame])."""
+    Blender session with persistent data. Returns (images, bake_s, setup_s, [seconds per frame])."""
     scene, floor, sphere = build(bpy, hdri_path, material, shot_camera(1, box), BOX if box else None)
     if route in PLATE_PHANTOM_ROUTES:
         scene.platelight.phantom_surface = "PLATE"
@@ -507,8 +506,7 @@ def main(out_dir: pathlib.Path) -> None:
         raise SystemExit("make bench-gpu: Cycles finds no GPU on this machine (OptiX, CUDA, HIP, "
                          "oneAPI, Metal); run `make bench` for the CPU benchmark.")
     # The probe groups' templates are built once per machine and add-on version, and cached on
-    # disk: a user's shots do not pay that build, so no row should (before session 28 the first
-    # row run in a session did: 6.4 s of setup against 0.4-0.7)
+    # disk: a user's shots do not pay that build, so no row should
     importlib.import_module(f"{support.EXT_MODULE}.node_groups.probe_maps").prepare_templates()
     hdri_path = str(pathlib.Path(bpy.utils.system_resource("DATAFILES", path="studiolights/world")) / f"{HDRI}.exr")
     folder = CACHE / (SIZE if DEVICE == "CPU" else f"{SIZE}_{DEVICE.lower()}")
@@ -643,7 +641,7 @@ def write_report(out_dir, rows):
         f"A sphere on a grey floor under the bundled `{HDRI}` HDRI, as diffuse, mirror, glossy copper, "
         "glossy anisotropic metal, and a mirror sphere beside a red phantom box (a nearby real thing). "
         f"The shot: {SHOT_FRAMES} frames, the camera orbiting {ORBIT_DEGREES:.0f}° about the sphere; its "
-        f"frames {RENDER_FRAMES[0]} and {RENDER_FRAMES[-1]} are rendered in one session (timed), frame(s) "
+        f"frames {RENDER_FRAMES[0]} and {RENDER_FRAMES[-1]} are rendered in one Blender session (timed), frame(s) "
         f"{', '.join(map(str, SCORED_FRAMES))} scored. Truth: Cycles "
         f"path-traced with the sphere there ({TRUTH_SAMPLES} spp in this run; each row's *truth spp* column "
         "says which truth it was scored against), no denoiser, Filter Glossy 0; plate: the "
@@ -654,29 +652,29 @@ def write_report(out_dir, rows):
         "the floor (and box) as shadow catchers, the plate times the Shadow Catcher pass, then the CG "
         "over it, OIDN on the catcher pass and on the CG where it covers the pixel (PlateLight's compositor group does exactly "
         "this). *platelight*: `setup_composite`'s defaults with the sphere converted to the "
-        "PlateLight SBRDF (since session 29 those defaults show Cycles' camera a metal's Principled twin, "
+        "PlateLight SBRDF (those defaults show Cycles' camera a metal's Principled twin, "
         "path-traced and denoised; *platelight (SBRDF)* and *platelight baked (SBRDF)* pin the SBRDF, "
-        "`metals='SBRDF'`, and are what the metal scenes' *platelight* rows measured before) and shaded from its own probe (one bake at the scene's default probe "
+        "`metals='SBRDF'`) and shaded from its own probe (one bake at the scene's default probe "
         "samples, sized to the sphere on screen, serves the shot): camera rays see the SBRDF, every other ray its Principled twin; parallax-corrected "
         "specular look-ups; shadow pass denoised, the CG only where it covers the pixel and only for the sharp mirror (a smooth SBRDF is not). *platelight baked*: the same sphere, the shot's "
         "shadows baked once (`bake_shadows()` defaults: a 512-row panorama at 16 spp, only its rows that see a "
-        "phantom (since session 27); since session 28 one render of Cycles' Shadow Catcher pass, that pass "
-        "alone denoised (before, two renders divided); since session 29 at most 3 diffuse bounces; "
+        "phantom, one render of Cycles' Shadow Catcher pass, that pass "
+        "alone denoised, at most 3 diffuse bounces; "
         "its time is in *bake*), `setup_composite(method='BAKED')` with the listed samples for the "
-        "CG layer and its default one sample for the baked shadows' layer; no path tracing per frame; since session 31 "
+        "CG layer and its default one sample for the baked shadows' layer; no path tracing per frame; "
         "with the phantoms' default surface, the plate (a user's scene has no replica of the real floor): the CG "
         "layer's rays meet the phantoms as the camera filmed them, times the baked ratio (docs/decisions.md, "
         "\"Filmed phantoms\"). *platelight baked (replica phantoms)* (`PLATELIGHT_BENCH_EXTRA=replica`): the same "
         "with the floor's and box's own materials, exact replicas of the truth's, path-traced in the CG's reflections "
-        "(what *platelight baked* measured before session 31). Every other route keeps the replicas. *platelight layered*: the CG in its own layer at "
+        "(the replicas a user's scene lacks). Every other route keeps the replicas. *platelight layered*: the CG in its own layer at "
         "4 spp, the shadows in a catcher layer at the listed samples. *platelight eevee*: "
         "`setup_composite(engine='EEVEE')`, Debevec's three layers rasterised (software GL here), "
         "listed samples = TAA samples. *platelight eevee baked*: the shot's shadows baked as for "
         "*platelight baked*, then `setup_composite(engine='EEVEE', method='BAKED')`: EEVEE renders "
         "the two emission-only layers. *platelight (paper)*: the paper's model as written (cosine "
         "falloff, diffuse and specular added in full, owner hidden in its probe, the emission "
-        "lighting the phantoms), still with parallax. *principled baked* (`PLATELIGHT_BENCH_EXTRA=principled`, since "
-        "session 29): the catcher's Principled sphere, not converted, path-traced in the CG layer at the listed "
+        "lighting the phantoms), still with parallax. *principled baked* (`PLATELIGHT_BENCH_EXTRA=principled`): "
+        "the catcher's Principled sphere, not converted, path-traced in the CG layer at the listed "
         "samples (OIDN where it covers the pixel) over the shadows baked as for *platelight baked*.",
         "",
         "Times (s): *bake* the probe bake (and the baked route's shadow bake), *setup* plate + composite set-up, *first* the first "
@@ -687,8 +685,12 @@ def write_report(out_dir, rows):
     ]
     loads = [r["load"] for r in rows if "load" in r]
     if LOAD_NOTE or loads:
-        lines += ["", "**Machine load.** " + LOAD_NOTE + (
-            f" The 1-minute load average (2 cores) when each row finished: median "
+        runs = ("the rows were timed in separate runs, and identical runs differ by about 15 %, so read "
+                "speed-ups within that. " if os.environ.get("PLATELIGHT_BENCH_KEEP_ROWS")
+                else "every row was timed in this run. ")
+        lines += ["", f"**Machine load.** A shared {os.cpu_count()}-core machine, Cycles on the {DEVICE}; "
+                  + runs + (LOAD_NOTE + " " if LOAD_NOTE else "") + (
+            f"The 1-minute load average (2 cores) when each row finished: median "
             f"{np.median(loads):.1f}, range {min(loads):.1f}–{max(loads):.1f}." if loads else "")]
     lines += ["", "| scene | route | spp | bake | setup | first | warm | per frame | PSNR object | PSNR shadow | PSNR frame | truth spp |",
               "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]

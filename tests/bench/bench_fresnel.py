@@ -96,8 +96,8 @@ def write_report(out_dir, rows):
              f"{SAMPLES} samples, frame {bc.SCORED_FRAMES[0]} scored) with a plastic sphere of colour "
              f"{COLOUR}, against a {TRUTH_SAMPLES}-spp path-traced truth.", "",
              "*paper*: f = (1 - cos)^k reaching 1 at grazing, k fitted to the albedo's normalised "
-             "rise, rho_s = F0 (the conversion before session 14). *fitted*: f = c (1 - cos)^k with the "
-             "Fresnel Peak c and k fitted together, rho_s = E(1) (the default now). Time: the shot's "
+             "rise, rho_s = F0. *fitted*: f = c (1 - cos)^k with the "
+             "Fresnel Peak c and k fitted together, rho_s = E(1) (the default). Time: the shot's "
              "set-up, bake and two frames (the same work both ways).",
              "", "| roughness | conversion | max weight error | object PSNR (dB) | s |",
              "|---:|---|---:|---:|---:|"]

@@ -10,8 +10,8 @@ Phong lobes or by GGX's (MapSettings.lobes), looked up along the mirror directio
 along R tilted towards the normal (the look-up tilt, addon/ibl/lobe_tilt.py: the shader's default).
 PSNR over the sphere's pixels, peak = the HDRI's 90th percentile by solid angle
 (`display_peak`: about the brightness a composite frame of that place clips at, docs/bench/composite.md's
-peak; before session 15 the sphere's own 99.5th percentile, which a sun's highlight raised, inflating
-the scores by up to 20 dB).
+peak; not the sphere's own 99.5th percentile, which a sun's highlight raises, inflating the scores by
+up to 20 dB).
 
 Run: `.venv/bin/python tests/bench/bench_lobes.py` (about 3 minutes on 2 cores); writes
 docs/bench/lobes.md."""

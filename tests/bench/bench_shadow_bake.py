@@ -10,7 +10,7 @@ renders keep. Methods: *two renders* (the panorama with the CG, the distance map
 without it; the ratio divided in numpy) and *catcher* (one render of the Shadow Catcher pass with
 the phantoms as catchers, then the distance map), its pass denoised by the compositor's Denoise node
 alone (*catcher, compositor*, the default) or by Cycles with Combined and the matte (*catcher,
-Cycles*); the compositor never prefilters the pass's guides (since session 29). *Diffuse
+Cycles*); the compositor never prefilters the pass's guides. *Diffuse
 bounces*: the bake's (its cap, SHADOW_BAKE_DIFFUSE_BOUNCES, or the scene's 4 below it; rows without
 the column rendered with the scene's 4). Bake seconds include the sphere's probe bake; *renders*
 are the shadow bake's renders in that order (the compositor's denoise among them), timed by

@@ -6,8 +6,8 @@ the SBRDF group's does, seen from three directions under a bundled HDRI. Truth: 
 the HDRI's texels (256 rows, tests/reference.py's brute force) integrated with Principled's
 (anisotropic) GGX, D and Smith G2, normalised over the hemisphere. PlateLight: the look-ups as the
 shader makes them (tilted, along the streak when anisotropic), reading either the four maps with
-the sun blurred in (the paper's maps; the default before session 13) or the sunless maps plus the
-sun through the lobe (the default now). HDRIs without a sun (courtyard) read the same maps both
+the sun blurred in (the paper's maps) or the sunless maps plus the
+sun through the lobe (the default). HDRIs without a sun (courtyard) read the same maps both
 ways. PSNR over the sphere's pixels, peak = the HDRI's 90th percentile by solid angle
 (bench_lobes.display_peak, as docs/bench/composite.md).
 

@@ -387,7 +387,7 @@ def test_probe_origin_object_sets_the_probe_centre(bpy_clean, tmp_path):
     add_sphere(bpy, "Lamp", (0, 0, 3), radius=0.3, enabled=False, color=(0, 0, 0), emission=(4, 4, 4))
     origin = bpy.data.objects.new("Origin", None)
     scene.collection.objects.link(origin)
-    origin.location = (0, 0, 5)               # above the lamp: the lamp is now straight down
+    origin.location = (0, 0, 5)               # above the lamp: the lamp is straight down from it
     ob.platelight.probe_origin = origin
     bake(bpy, all_objects=True, cull=False)
     record = json.loads((maps_folder(tmp_path, "Sphere") / "bake.json").read_text())

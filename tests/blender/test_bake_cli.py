@@ -80,7 +80,7 @@ def test_not_a_blend(tmp_path):
 
 def test_headless_runs_leave_no_temporary_folders(tmp_path):
     """Each run's Blender profile and Blender's own session folder are removed when it ends, on
-    error too (they used to pile up as platelight-cli-profile-* in the temp folder)."""
+    error too (none piles up as platelight-cli-profile-* in the temp folder)."""
     import os
     import subprocess
     import sys

@@ -91,7 +91,7 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
     ball.location.z += 0.2
     assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=4) == {"FINISHED"}
     assert "run Bake Shadows again" in capfd.readouterr().out
-    # and the default method no longer takes it
+    # and the default method does not take it
     assert bpy.ops.platelight.setup_composite() == {"FINISHED"}
     said = capfd.readouterr().out
     assert "(catcher, cycles)" in said and "Shadow Catcher renders them instead" in said

@@ -60,7 +60,7 @@ def test_sbrdf_mirror_is_closer_to_path_tracing_than_the_papers_model(bpy_clean,
     obj, _ = bench.masks(truth, plate)
     peak = float(np.percentile(truth, 99.5))
     psnr = {}
-    # the SBRDF pinned (a metal's default in Cycles is its path-traced twin since session 29)
+    # the SBRDF pinned (a metal's default in Cycles is its path-traced twin)
     for route in ("sbrdf_sbrdf", "sbrdf_paper"):
         image, bake_s, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", route, 4,
                                            tmp_path / f"{route}.exr")

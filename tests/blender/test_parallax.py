@@ -86,7 +86,7 @@ def test_mirror_reflects_the_box_where_path_tracing_does(bpy_clean, tmp_path, st
 
         bench.render = render
         try:
-            # the SBRDF pinned: a metal's default in Cycles is its path-traced twin (session 29)
+            # the SBRDF pinned: a metal's default in Cycles is its path-traced twin
             image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf_sbrdf", 2,
                                           tmp_path / f"{variant}.exr", camera=CAMERA, box=bench.BOX)
         finally:
@@ -96,7 +96,7 @@ def test_mirror_reflects_the_box_where_path_tracing_does(bpy_clean, tmp_path, st
         errors[variant] = np.abs(image[..., :3] - truth[..., :3])[obj].mean()
     assert iou["behind"] >= 0.85, iou                 # measured 0.89
     assert iou["behind"] > iou["parallax"] + 0.03, iou
-    assert iou["parallax"] >= 0.75, iou               # measured 0.82 (0.87 in session 7)
+    assert iou["parallax"] >= 0.75, iou               # measured 0.82
     assert iou["centre"] < 0.6, iou                  # the centre probe's look-up: 0.42
     assert errors["behind"] < errors["parallax"] < errors["centre"], errors
 
@@ -268,7 +268,7 @@ def test_matte_ball_diffuse_parallax_is_closer_to_path_tracing(bpy_clean, tmp_pa
         bench.sbrdf_sphere = bake
         out = tmp_path / f"diffuse_parallax_{parallax}.exr"
         try:
-            # the SBRDF pinned: a metal's default in Cycles is its path-traced twin (session 29)
+            # the SBRDF pinned: a metal's default in Cycles is its path-traced twin
             image, _, _ = bench.composite(bpy, hdri, material, tmp_path / "plate.exr", "sbrdf_sbrdf", 2, out)
         finally:
             bench.sbrdf_sphere = original

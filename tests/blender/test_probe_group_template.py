@@ -1,5 +1,5 @@
 """Probe groups are copies of a template built once (node_groups/probe_maps.py, template_cache.py):
-a rebuilt group keeps its place (users, links, name, properties), a new session appends the
+a rebuilt group keeps its place (users, links, name, properties), a new Blender session appends the
 template from the cache, and a corrupt or stale cache file falls back to building."""
 from __future__ import annotations
 
@@ -93,7 +93,7 @@ def test_the_cache_is_named_by_the_sources(bpy_clean, tmp_path, monkeypatch):
 
 def test_prepare_templates_leaves_both_templates_ready(bpy_clean):
     """What a timed shot calls first (bench_composite.py): both templates in the file, unused,
-    and both on disk for the next session."""
+    and both on disk for the next Blender session."""
     bpy = bpy_clean
     probe_maps, template_cache = _modules()
     probe_maps.prepare_templates()

@@ -203,7 +203,7 @@ def test_group_is_idempotent_and_upgrades_in_place(bpy_clean, tmp_path):
     assert "Obsolete" not in [i.name for i in group.interface.items_tree]
     assert sm.read_params(mat).diffuse_albedo == pytest.approx(PRESETS["plastic"]["diffuse_albedo"])
     assert sm.probe_node(mat).inputs["Map Glossiness"].is_linked
-    # A file from before an output was added (session 13's Lobe View): re-binding it after a bake
+    # A file from before an output was added (here the Lobe View): re-binding it after a bake
     # upgrades the SBRDF group and links the new output to the (rebuilt) probe group.
     group.interface.remove(next(i for i in group.interface.items_tree if i.name == "Lobe View"))
     group[sbrdf.VERSION_KEY] = 4
