@@ -14,6 +14,8 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.platelight-stamp
 OUT ?= out/demo
 PYTEST_ARGS ?=
+# The suite runs in this many processes (pytest-xdist); each test has its own profile and folder.
+TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
 .PHONY: venv test test-fast demo bench bench-960 bench-1080 bench-gpu dist validate clean
 
@@ -32,11 +34,11 @@ $(STAMP): $(wildcard $(REQUIREMENTS)) $(NO_DEPS)
 	touch $(STAMP)
 
 test: venv
-	$(PY) -m pytest tests $(PYTEST_ARGS)
+	$(PY) -m pytest tests -n $(TEST_JOBS) --dist worksteal $(PYTEST_ARGS)
 
 # Engine-only tests (no Blender), for a quick loop.
 test-fast: venv
-	$(PY) -m pytest tests -m "not blender" $(PYTEST_ARGS)
+	$(PY) -m pytest tests -m "not blender" -n $(TEST_JOBS) --dist worksteal $(PYTEST_ARGS)
 
 demo: venv
 	$(PY) -m platelight demo --out $(OUT)
