@@ -96,7 +96,7 @@ def resolve_probe_dir(obj, scene) -> tuple[str, str]:
     world_kind, _ = probe_maps.probe_maps_status(world)
     if world_kind != "missing":
         return world, f"Maps missing in '{own or '(no folder)'}': using the world maps"
-    return world, f"Maps missing in '{own or '(no folder)'}' and no world maps: renders black"
+    return world, f"Maps missing in '{own or '(no folder)'}' and no world maps: renders black until Bake Probes"
 
 
 def build_material(name: str, probe_dir: str, params: SBRDFParams, label: str | None = None,

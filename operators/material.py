@@ -82,8 +82,8 @@ class PLATELIGHT_OT_apply_sbrdf(bpy.types.Operator):
             report_error(self, err)
             return {"CANCELLED"}
         folder, status = sm.resolve_probe_dir(obj, context.scene)
-        level = {"WARNING"} if "missing" in status else {"INFO"}
-        self.report(level, f"{material.name}: {status}")
+        # maps not baked yet is the README's next step (Bake Probes), not something gone wrong
+        self.report({"INFO"}, f"{material.name}: {status}")
         for name, inputs in driven.items():
             if inputs:
                 self.report({"INFO"}, f"{name}'s {', '.join(inputs)} came from links (textures, "
