@@ -45,6 +45,12 @@ MIN_RADIUS_PX = 32          # smaller balls unwrap to too few pixels to be worth
 CLIPPED_BAND = 0.9
 CLIP_LEVEL = 0.97 * 255     # linear luminance (0..255 scale) at which an 8/16-bit pixel is white
 MIN_SEEN = 0.5
+# A weaker step also counts as a rim candidate when it is this many times stronger than any
+# step beyond it on its ray (more than OUTER_GAP_PX further out), and its gradient is at least
+# MIN_RIM_CONTRAST of the brighter side's level per pixel (a sharp step of about 10 %).
+OUTER_CALM = 3.0
+OUTER_GAP_PX = 1.5
+MIN_RIM_CONTRAST = 0.05
 LAST_FITS: list = []
 HOW_TO_GIVE = "give its circle with {ball}"        # {ball}: named by each front end (wording.py)
 BALL = {"ball": "its centre and radius in pixels"}
@@ -186,7 +192,22 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
     gmax = grad.max(axis=1, keepdims=True)
     typical = float(np.median(gmax[usable])) if usable.any() else 0.0
     g0, g1, g2 = grad[:, :-2], grad[:, 1:-1], grad[:, 2:]
-    peak = (g1 >= g0) & (g1 > g2) & (g1 > 0.35 * gmax) & (gmax > max(1.0, 0.15 * typical))
+    strong = (g1 > 0.35 * gmax) & (gmax > max(1.0, 0.15 * typical))
+    # ...or a step that stands out of the calm beyond it: a ball's rim reflects what lies just
+    # behind the ball, often the very background around it, so its step is only the
+    # reflectance's loss (-25 % for a chrome of 0.75), far weaker than the compressed
+    # reflections inside it; but it is the last step before that background
+    spx = step * r                                             # px per sample
+    m = max(2, int(np.ceil(OUTER_GAP_PX / spx)))
+    after = np.maximum.accumulate(grad[:, ::-1], axis=1)[:, ::-1]   # max of grad[j:] per j
+    beyond = np.full_like(grad, np.inf)
+    beyond[:, :-m] = after[:, m:]
+    beyond[:, -m:] = np.inf                                    # nothing beyond: cannot tell
+    val = np.nan_to_num(prof)
+    lvl = np.maximum(val[:, :-1], val[:, 1:])
+    level = np.maximum(np.roll(lvl, m, axis=1), np.roll(lvl, -m, axis=1))   # the brighter side
+    calm = (g1 > OUTER_CALM * beyond[:, 1:-1]) & (g1 > MIN_RIM_CONTRAST * spx * level[:, 1:-1]) & (g1 > 1e-3 * spx)
+    peak = (g1 >= g0) & (g1 > g2) & (strong | calm)
     ray, k = np.nonzero(peak)
     k = k + 1
     a, b, c = grad[ray, k - 1], grad[ray, k], grad[ray, k + 1]
