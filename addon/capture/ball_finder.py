@@ -208,6 +208,7 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
     level = np.maximum(np.roll(lvl, m, axis=1), np.roll(lvl, -m, axis=1))   # the brighter side
     calm = (g1 > OUTER_CALM * beyond[:, 1:-1]) & (g1 > MIN_RIM_CONTRAST * spx * level[:, 1:-1]) & (g1 > 1e-3 * spx)
     peak = (g1 >= g0) & (g1 > g2) & (strong | calm)
+    weak = (calm & ~strong)[peak]
     ray, k = np.nonzero(peak)
     k = k + 1
     a, b, c = grad[ray, k - 1], grad[ray, k], grad[ray, k + 1]
@@ -228,7 +229,10 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
             alive = ok
             if not alive.any():
                 break
-    return RimSteps(ray, pos, width * step * r, usable, seen, theta, (cx, cy, rx, ry))
+    width = width * spx
+    # a weak step only counts while sharp: a ripple on the tail of a blurred edge is not a rim
+    keep = ~weak | (width <= max(MAX_RIM_WIDTH_PX, MAX_RIM_WIDTH * r))
+    return RimSteps(ray[keep], pos[keep], width[keep], usable, seen, theta, (cx, cy, rx, ry))
 
 
 def smoothed(linear: np.ndarray) -> np.ndarray:
