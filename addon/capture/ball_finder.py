@@ -10,7 +10,10 @@ have far stronger edges. So the finder does not trust any single edge detector:
 2. each candidate is refined on the rim: along 720 rays the *outermost* strong step of the
    linear-light luminance within a band around the guess is located to a sub-sample, and an
    axis-aligned ellipse (a ball seen off the optical axis, or non-square pixels, is slightly
-   elliptical) or a circle is fitted with outlier rejection; rays leaving the photo are skipped;
+   elliptical) or a circle is fitted with outlier rejection; rays leaving the photo are skipped.
+   A step counts when it is strong on its ray, or when it is sharp and stands well above the
+   calm beyond it: a ball in front of what it reflects (its rim mirrors the light straight
+   behind it, the background itself) shows only the reflectance's loss at its outline;
 3. the candidate whose rim is supported on the largest share of its outline wins; that share is
    its confidence (0..1). Two well-supported, separate balls, or none, are errors that say how
    to give the circle by hand.
