@@ -33,8 +33,8 @@ MIN_ARC_RAYS = 10            # 5 degrees of unbroken rim
 MAX_RIM_WIDTH_PX = 4.0       # a rim step wider than this (px, at half its peak gradient)...
 MAX_RIM_WIDTH = 0.03         # ...and than this share of the radius is a glow, not a ball's outline
 # A ball is accepted when its rim is found on this share of its outline; below UNSURE the
-# result comes with a warning to check it (measured: the real balls and their variants 0.37-0.82,
-# the strongest circle in 7 real photos without a ball <= 0.14; docs/bench/capture.md).
+# result comes with a warning to check it (measured: the real balls and their variants 0.34-0.87,
+# the strongest circle in 7 real photos without a ball <= 0.09; docs/capture.md).
 MIN_CONFIDENCE = 0.3
 UNSURE_CONFIDENCE = 0.5
 MAX_ELLIPTICITY = 0.08      # |rx/ry - 1| beyond this is not "a ball seen slightly off-axis"
