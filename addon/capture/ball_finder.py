@@ -10,7 +10,10 @@ have far stronger edges. So the finder does not trust any single edge detector:
 2. each candidate is refined on the rim: along 720 rays the *outermost* strong step of the
    linear-light luminance within a band around the guess is located to a sub-sample, and an
    axis-aligned ellipse (a ball seen off the optical axis, or non-square pixels, is slightly
-   elliptical) or a circle is fitted with outlier rejection; rays leaving the photo are skipped;
+   elliptical) or a circle is fitted with outlier rejection; rays leaving the photo are skipped.
+   A step counts when it is strong on its ray, or when it is sharp and stands well above the
+   calm beyond it: a ball in front of what it reflects (its rim mirrors the light straight
+   behind it, the background itself) shows only the reflectance's loss at its outline;
 3. the candidate whose rim is supported on the largest share of its outline wins; that share is
    its confidence (0..1). Two well-supported, separate balls, or none, are errors that say how
    to give the circle by hand.
@@ -30,8 +33,8 @@ MIN_ARC_RAYS = 10            # 5 degrees of unbroken rim
 MAX_RIM_WIDTH_PX = 4.0       # a rim step wider than this (px, at half its peak gradient)...
 MAX_RIM_WIDTH = 0.03         # ...and than this share of the radius is a glow, not a ball's outline
 # A ball is accepted when its rim is found on this share of its outline; below UNSURE the
-# result comes with a warning to check it (measured: the real balls and their variants 0.37-0.82,
-# the strongest circle in 7 real photos without a ball <= 0.14; docs/bench/capture.md).
+# result comes with a warning to check it (measured: the real balls and their variants 0.34-0.87,
+# the strongest circle in 7 real photos without a ball <= 0.09; docs/capture.md).
 MIN_CONFIDENCE = 0.3
 UNSURE_CONFIDENCE = 0.5
 MAX_ELLIPTICITY = 0.08      # |rx/ry - 1| beyond this is not "a ball seen slightly off-axis"
@@ -45,6 +48,12 @@ MIN_RADIUS_PX = 32          # smaller balls unwrap to too few pixels to be worth
 CLIPPED_BAND = 0.9
 CLIP_LEVEL = 0.97 * 255     # linear luminance (0..255 scale) at which an 8/16-bit pixel is white
 MIN_SEEN = 0.5
+# A weaker step also counts as a rim candidate when it is this many times stronger than any
+# step beyond it on its ray (more than OUTER_GAP_PX further out), and its gradient is at least
+# MIN_RIM_CONTRAST of the brighter side's level per pixel (a sharp step of about 10 %).
+OUTER_CALM = 3.0
+OUTER_GAP_PX = 1.5
+MIN_RIM_CONTRAST = 0.05
 LAST_FITS: list = []
 HOW_TO_GIVE = "give its circle with {ball}"        # {ball}: named by each front end (wording.py)
 BALL = {"ball": "its centre and radius in pixels"}
@@ -186,7 +195,23 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
     gmax = grad.max(axis=1, keepdims=True)
     typical = float(np.median(gmax[usable])) if usable.any() else 0.0
     g0, g1, g2 = grad[:, :-2], grad[:, 1:-1], grad[:, 2:]
-    peak = (g1 >= g0) & (g1 > g2) & (g1 > 0.35 * gmax) & (gmax > max(1.0, 0.15 * typical))
+    strong = (g1 > 0.35 * gmax) & (gmax > max(1.0, 0.15 * typical))
+    # ...or a step that stands out of the calm beyond it: a ball's rim reflects what lies just
+    # behind the ball, often the very background around it, so its step is only the
+    # reflectance's loss (-25 % for a chrome of 0.75), far weaker than the compressed
+    # reflections inside it; but it is the last step before that background
+    spx = step * r                                             # px per sample
+    m = max(2, int(np.ceil(OUTER_GAP_PX / spx)))
+    after = np.maximum.accumulate(grad[:, ::-1], axis=1)[:, ::-1]   # max of grad[j:] per j
+    beyond = np.full_like(grad, np.inf)
+    beyond[:, :-m] = after[:, m:]
+    beyond[:, -m:] = np.inf                                    # nothing beyond: cannot tell
+    val = np.nan_to_num(prof)
+    lvl = np.maximum(val[:, :-1], val[:, 1:])
+    level = np.maximum(np.roll(lvl, m, axis=1), np.roll(lvl, -m, axis=1))   # the brighter side
+    calm = (g1 > OUTER_CALM * beyond[:, 1:-1]) & (g1 > MIN_RIM_CONTRAST * spx * level[:, 1:-1]) & (g1 > 1e-3 * spx)
+    peak = (g1 >= g0) & (g1 > g2) & (strong | calm)
+    weak = (calm & ~strong)[peak]
     ray, k = np.nonzero(peak)
     k = k + 1
     a, b, c = grad[ray, k - 1], grad[ray, k], grad[ray, k + 1]
@@ -207,7 +232,10 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
             alive = ok
             if not alive.any():
                 break
-    return RimSteps(ray, pos, width * step * r, usable, seen, theta, (cx, cy, rx, ry))
+    width = width * spx
+    # a weak step only counts while sharp: a ripple on the tail of a blurred edge is not a rim
+    keep = ~weak | (width <= max(MAX_RIM_WIDTH_PX, MAX_RIM_WIDTH * r))
+    return RimSteps(ray[keep], pos[keep], width[keep], usable, seen, theta, (cx, cy, rx, ry))
 
 
 def smoothed(linear: np.ndarray) -> np.ndarray:

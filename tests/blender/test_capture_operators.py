@@ -160,10 +160,15 @@ def test_capture_probe_failure_leaves_scene_unchanged(bpy_clean, ball_photos, tm
     bpy = bpy_clean
     folder, names, _ = ball_photos
     before = _scene_state(bpy)
-    # one photo is a valid input, but this one (the darkest bracket) shows no ball; the
+    # one photo is a valid input, but this one shows no ball (a grey ramp and a box); the
     # sentence names the operator's field, not the CLI's flag
+    blank = np.repeat(np.linspace(40, 200, 160, dtype=np.float32)[None, :, None], 3, axis=2)
+    blank = np.repeat(blank, 120, axis=0)
+    blank[30:80, 50:130] = 20
+    cv2.imwrite(str(tmp_path / "blank.png"), blank.astype(np.uint8))
     with pytest.raises(RuntimeError, match="No mirror ball was found in the photo; give its circle with the Ball Circle field"):
-        bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": names[0]}])
+        bpy.ops.platelight.capture_probe(directory=str(tmp_path), files=[{"name": "blank.png"}])
+    assert not (tmp_path / "probe.exr").exists()
     with pytest.raises(RuntimeError, match="No EXIF exposure time") as refused:
         bpy.ops.platelight.capture_probe(directory=str(folder), files=[{"name": n} for n in names])
     # Blender's words: the operator's field, not the command line's flag
