@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import PlateLightError
-from ..ibl.equirect import texel_directions
+from ..ibl.equirect import row_elevations, row_solid_angles, texel_directions
 
 
 def default_camera_rotation() -> np.ndarray:
@@ -101,34 +101,81 @@ def check_ball(ball: Ball, width: int, height: int) -> None:
             f"{width}x{height} photo); frame the whole ball.")
 
 
+def texel_supersampling(ball: Ball, height: int) -> int:
+    """Sub-texels per probe texel side, so that a texel averages the photo pixels it covers
+    rather than sampling one point (a small hot sun is otherwise caught or missed whole). At
+    the ball's centre a texel spans ρ·π/(2·height) pixels; two samples a pixel, at most 8."""
+    return int(np.clip(np.ceil(max(ball.radius, ball.ry) * np.pi / height), 1, 8))
+
+
 def unwrap(image: np.ndarray, ball: Ball, height: int = 256, camera_to_world=None,
            reflectance: float = 1.0, rim_deg: float = 10.0):
     """Lat-long probe (height x 2·height x C, float32) from a mirror-ball image (H, W, C) float.
 
     ``camera_to_world``: 3x3 (or 4x4) rotation of the camera that took the photo in Blender's
     camera convention (default: ``default_camera_rotation()``). Returns (probe, confidence) where
-    confidence in [0, 1] falls to 0 in the blind spot behind the ball."""
-    import cv2
-
+    confidence in [0, 1] falls to 0 in the blind spot behind the ball. Each texel is the
+    solid-angle average of ``texel_supersampling`` ² sub-texels gathered from the photo."""
     if height < 4:
         raise PlateLightError("The probe height must be at least 4 pixels.")
     rot = default_camera_rotation() if camera_to_world is None else np.asarray(camera_to_world, float)[:3, :3]
     img = np.asarray(image, dtype=np.float32)
     check_ball(ball, img.shape[1], img.shape[0])
-    dirs = texel_directions(height, 2 * height)
-    r_cam = dirs @ rot                                      # R^T w, for every texel
-    n = r_cam + np.array([0.0, 0.0, 1.0])
-    norm = np.linalg.norm(n, axis=-1, keepdims=True)
-    n = np.where(norm > 1e-9, n / np.maximum(norm, 1e-12), np.array([1.0, 0.0, 0.0]))
-    map_x = (ball.cx + ball.radius * n[..., 0]).astype(np.float32)
-    map_y = (ball.cy - ball.ry * n[..., 1]).astype(np.float32)
-    probe = cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    if probe.ndim == 2:
-        probe = probe[..., None]
-    probe = probe / float(reflectance)
+    probe = area_gather(img, ball, height, rot) / float(reflectance)
+    r_cam = texel_directions(height, 2 * height) @ rot
     angle_behind = np.degrees(np.arccos(np.clip(-r_cam[..., 2], -1, 1)))   # angle to d
     confidence = np.clip((180.0 - angle_behind) / rim_deg, 0, 1).astype(np.float32)
     return probe.astype(np.float32), confidence
+
+
+# Sub-texels gathered at once: bounds the memory of a big photo's fine grid (~100 MB).
+CHUNK_TEXELS = 1 << 22
+
+
+def area_gather(img: np.ndarray, ball: Ball, height: int, rot: np.ndarray) -> np.ndarray:
+    """Each probe texel as the solid-angle weighted mean of its s x s sub-texels' photo
+    values, s = texel_supersampling; gathered a band of rows at a time, in float32 with the
+    lat-long's separable rows and columns (directions as full arrays cost 10x the remap)."""
+    import cv2
+
+    s = texel_supersampling(ball, height)
+    fine = height * s
+    azimuth = np.pi * ((np.arange(2 * fine) + 0.5) / fine - 1.0)
+    # camera-frame direction R^T w = cos(el)·(cos az·R0 - sin az·R1) + sin(el)·R2, by component
+    columns = (np.cos(azimuth)[:, None] * rot[0] - np.sin(azimuth)[:, None] * rot[1]).astype(np.float32)
+    elevation = row_elevations(fine)
+    weights = row_solid_angles(fine, 2 * fine)
+    channels = img.shape[2] if img.ndim == 3 else 1
+    out = np.empty((height, 2 * height, channels), np.float32)
+    band = max(1, CHUNK_TEXELS // (2 * fine * s))                 # probe rows a band
+    for i0 in range(0, height, band):
+        i1 = min(height, i0 + band)
+        rows = slice(i0 * s, i1 * s)
+        ce = np.cos(elevation[rows]).astype(np.float32)[:, None]
+        se = np.sin(elevation[rows])[:, None] * rot[2]
+        r = [ce * columns[:, k] + se[:, k:k + 1].astype(np.float32) for k in range(3)]
+        # the normal halfway between r and the view ray's reverse (+Z), placed on the disc
+        norm = np.sqrt(r[0] * r[0] + r[1] * r[1] + (r[2] + 1) ** 2)
+        behind = norm < 1e-6                                   # r = -Z: the rim, any side
+        norm = np.where(behind, np.float32(1), norm)
+        map_x = ball.cx + ball.radius * np.where(behind, np.float32(1), r[0] / norm)
+        map_y = ball.cy - ball.ry * r[1] / norm
+        values = cv2.remap(img, map_x.astype(np.float32), map_y.astype(np.float32), cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_REPLICATE).reshape(i1 * s - i0 * s, 2 * fine, channels)
+        w = weights[rows].astype(np.float32)
+        values *= w[:, None, None]
+        box = (2 * height, i1 - i0)
+        out[i0:i1] = area_mean(values, box) / area_mean(np.broadcast_to(w[:, None], values.shape[:2]).copy(),
+                                                         box)[..., None]
+    return out
+
+
+def area_mean(values: np.ndarray, size) -> np.ndarray:
+    """Box mean over whole s x s blocks (OpenCV's INTER_AREA at an integer factor)."""
+    import cv2
+
+    out = cv2.resize(values, size, interpolation=cv2.INTER_AREA)
+    return out.reshape(size[1], size[0], -1) if values.ndim == 3 else out
 
 
 def view_angle_deg(height: int, camera_to_world=None) -> np.ndarray:
