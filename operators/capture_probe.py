@@ -3,7 +3,7 @@
 import os
 
 import bpy
-from bpy.props import CollectionProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
 from ..addon import names
@@ -75,6 +75,9 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
                                   default=50.0, min=1.0)
     photo_sensor_mm: FloatProperty(name="Photo Sensor", description="Sensor width of the ball photos",
                                    default=36.0, min=1.0)
+    fill: EnumProperty(name="Unseen Directions", description="Where the frame cuts the ball, the directions "
+                       "no pixel shows", items=(("nearest", "Nearest", "Copied from the nearest seen directions"),
+                                                ("black", "Black", "Left black")), default="nearest")
     output: StringProperty(name="Probe File", description="Where the EXR goes (empty: probe.exr beside the brackets)",
                            default="", subtype="FILE_PATH")
 
@@ -115,7 +118,7 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             result = make_probe(sorted(paths), exposures=exposures, ball=ball, height=self.height,
                                 rotate_z_deg=math.degrees(self.rotate_z), reflectance=self.reflectance,
                                 card_box=card, card_albedo=self.card_albedo, align_target=align,
-                                align_intrinsics=intrinsics)
+                                align_intrinsics=intrinsics, fill=self.fill)
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:

@@ -139,13 +139,37 @@ def test_ball_filling_a_square_crop_through_the_cli(tmp_path):
     assert "touches the frame" in proc.stderr
 
 
-def test_ball_cut_by_the_frame_is_refused(tmp_path):
+def test_ball_cut_by_the_frame_still_gives_a_probe(tmp_path):
+    """20 % of the radius cut off: a probe from what is seen, the unseen directions filled and
+    the warning saying how much; 35 % cut: refused, nothing written."""
     lamp = cv2.resize(rp.read(rp.BALLS / "lamp.jpg"), (1024, 1024), interpolation=cv2.INTER_AREA)
     truth = rp.ball_truth()["lamp.jpg"]
-    left = int((truth["cx"] - 0.8 * truth["rx"]) / 4)          # the frame cuts 20 % of the radius off
-    cv2.imwrite(str(tmp_path / "cut.jpg"), lamp[:, left:])
-    line = _cli_error(tmp_path / "cut.jpg", "--out", tmp_path / "p.exr")
-    assert "The ball is cut by the frame (20 % of its radius" in line
+    # the truth in the quarter-size copy (pixel centres at integers: x/4 - 3/8)
+    cx, cy, r = truth["cx"] / 4 - 0.375, truth["cy"] / 4 - 0.375, truth["rx"] / 4
+    circle = f"{cx:.3f},{cy:.3f},{r:.3f}"
+    cv2.imwrite(str(tmp_path / "whole.png"), lamp)
+    whole = support.run_cli("probe", tmp_path / "whole.png", "--ball", circle, "--out", tmp_path / "whole.exr",
+                            "--height", 64)
+    assert whole.returncode == 0, whole.stderr
+    for fill in ("nearest", "black"):
+        left = int(cx - 0.8 * r)                             # the frame cuts 20 % of the radius off
+        cv2.imwrite(str(tmp_path / "cut.png"), lamp[:, left:])
+        out = tmp_path / f"cut_{fill}.exr"
+        proc = support.run_cli("probe", tmp_path / "cut.png", "--out", out, "--height", 64, "--fill", fill)
+        assert proc.returncode == 0, proc.stderr
+        assert "the ball is cut by the frame (20 % of its radius" in proc.stderr
+        assert f"{'filled from the nearest seen directions' if fill == 'nearest' else 'left black'}" in proc.stderr
+        cut, ref = read_exr(out), read_exr(tmp_path / "whole.exr")
+        seen = mirror_ball.view_angle_deg(64) < 90            # in front of the ball: seen in both
+        rel = np.abs(cut - ref).sum(-1)[seen] / ref.sum(-1)[seen]
+        assert np.median(rel) < 0.05, np.median(rel)
+        black = (cut.sum(-1) == 0).mean()
+        assert (black > 0.01) if fill == "black" else (black == 0), black
+    left = int(cx - 0.65 * r)                                 # 35 %: too much is missing
+    cv2.imwrite(str(tmp_path / "deep.png"), lamp[:, left:])
+    line = _cli_error(tmp_path / "deep.png", "--ball", f"{cx - left:.2f},{cy:.2f},{r:.2f}",
+                      "--out", tmp_path / "p.exr")
+    assert "The ball is cut by the frame (35 % of its radius" in line and "more than 25 %" in line
     assert not (tmp_path / "p.exr").exists()
 
 

@@ -127,7 +127,8 @@ def _candidates(display: np.ndarray) -> list[tuple[float, float, float, float]]:
                        interpolation=cv2.INTER_AREA) if shrink > 1 else display
     sh, sw = small.shape
     blur = np.clip(cv2.GaussianBlur(small, (0, 0), 1.5), 0, 255).astype(np.uint8)
-    lo, hi = max(4, int(min(sh, sw) * 0.04)), int(max(sh, sw) * 0.55)
+    # down to the smallest ball worth finding (a 5 % ball in a 24 MP photo is ~60 px across)
+    lo, hi = max(4, int(0.8 * MIN_RADIUS_PX / shrink)), int(max(sh, sw) * 0.55)
     found = []
     alt = cv2.HoughCircles(blur, cv2.HOUGH_GRADIENT_ALT, dp=1.5, minDist=min(sh, sw) / 8, param1=60,
                            param2=0.6, minRadius=lo, maxRadius=hi)

@@ -10,6 +10,7 @@ import time
 from ..errors import PlateLightError
 from ..wording import CLI_FLAGS, worded
 from ..fileio import ensure_writable_folder, write_json_atomic
+from .mirror_ball import FILLS
 
 
 def _floats(count: int | None):
@@ -67,6 +68,9 @@ def add_parser(sub) -> None:
                    help="grey card normal in the probe's frame (default: towards the clipped light)")
     p.add_argument("--per-channel-response", action="store_true",
                    help="recover R, G, B response curves separately (default: one shared curve)")
+    p.add_argument("--fill", choices=FILLS, default="nearest",
+                   help="directions a ball cut by the frame does not show: copied from the nearest seen "
+                        "ones (default) or left black")
     p.add_argument("--report", metavar="FILE.json", help="write the ball, response curve and warnings")
     p.set_defaults(func=run)
 
@@ -115,7 +119,7 @@ def run(args) -> int:
                         camera_to_world=camera, rotate_z_deg=args.rotate_z, reflectance=args.reflectance,
                         card_box=args.grey_card, card_albedo=args.card_albedo, card_normal=args.card_normal,
                         shared_response=not args.per_channel_response, align_target=align,
-                        align_intrinsics=intrinsics)
+                        align_intrinsics=intrinsics, fill=args.fill)
     write_exr(args.out, result.probe)
     if args.report:
         write_json_atomic(args.report, result.report())

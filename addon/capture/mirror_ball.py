@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import PlateLightError
-from ..ibl.equirect import row_elevations, row_solid_angles, texel_directions
+from ..ibl.equirect import row_elevations, row_solid_angles, texel_directions, texel_solid_angles
 
 
 def default_camera_rotation() -> np.ndarray:
@@ -55,6 +55,10 @@ class Ball:
 # The frame may clip this much of the ball's radius (the outermost rim reflects what lies
 # almost straight behind the ball, the probe's blind spot) before the ball counts as cut.
 MAX_CUT = 0.02
+# A ball cut deeper than this is refused: past it a whole side of the world is missing.
+MAX_CUT_USABLE = 0.25
+# How the directions a cut ball does not show are filled.
+FILLS = ("nearest", "black")
 
 
 def find_ball(image: np.ndarray) -> Ball:
@@ -75,10 +79,21 @@ def ball_warnings(ball: Ball, width: int, height: int) -> list[str]:
         out.append(Sentence(f"the ball's outline was seen on only {100 * ball.confidence:.0f} % of its rim, so "
                             f"the circle found (centre {ball.cx:.1f}, {ball.cy:.1f}, radius {ball.radius:.1f} px) "
                             f"is unsure: check it, or {HOW_TO_GIVE}", **BALL))
-    if cut_depth(ball, width, height) > 0:
+    if 0 < cut_depth(ball, width, height) <= MAX_CUT:
         out.append("the ball touches the frame's edge: its outermost rim (directions almost straight behind "
-                   "the ball) is filled from the edge pixels")
+                   "the ball) is filled from the nearest seen directions")
     return out
+
+
+def cut_warning(ball: Ball, width: int, height: int, missing: float, fill: str) -> str | None:
+    """What a ball cut by the frame leaves out of the probe (``missing``: share of the sphere's
+    solid angle that no photo pixel shows), or None for a ball inside the frame."""
+    depth = cut_depth(ball, width, height)
+    if depth <= MAX_CUT:
+        return None
+    how = "filled from the nearest seen directions" if fill == "nearest" else "left black"
+    return (f"the ball is cut by the frame ({100 * depth:.0f} % of its radius lies outside the photo): "
+            f"{100 * missing:.1f} % of the probe's directions were not seen and are {how}")
 
 
 def cut_depth(ball: Ball, width: int, height: int) -> float:
@@ -95,10 +110,10 @@ def check_ball(ball: Ball, width: int, height: int) -> None:
     if min(ball.radius, ball.ry) < 8:
         raise PlateLightError(f"The ball's radius ({ball.radius:.1f} px) is too small to unwrap.")
     depth = cut_depth(ball, width, height)
-    if depth > MAX_CUT:
+    if depth > MAX_CUT_USABLE:
         raise PlateLightError(
             f"The ball is cut by the frame ({100 * depth:.0f} % of its radius lies outside the "
-            f"{width}x{height} photo); frame the whole ball.")
+            f"{width}x{height} photo, more than {100 * MAX_CUT_USABLE:.0f} %); frame more of the ball.")
 
 
 def texel_supersampling(ball: Ball, height: int) -> int:
@@ -109,36 +124,67 @@ def texel_supersampling(ball: Ball, height: int) -> int:
 
 
 def unwrap(image: np.ndarray, ball: Ball, height: int = 256, camera_to_world=None,
-           reflectance: float = 1.0, rim_deg: float = 10.0):
+           reflectance: float = 1.0, rim_deg: float = 10.0, fill: str = "nearest"):
     """Lat-long probe (height x 2·height x C, float32) from a mirror-ball image (H, W, C) float.
 
     ``camera_to_world``: 3x3 (or 4x4) rotation of the camera that took the photo in Blender's
     camera convention (default: ``default_camera_rotation()``). Returns (probe, confidence) where
-    confidence in [0, 1] falls to 0 in the blind spot behind the ball. Each texel is the
+    confidence in [0, 1] falls to 0 in the blind spot behind the ball and where the frame cuts
+    the ball; such unseen texels are filled as ``fill`` says (FILLS). Each texel is the
     solid-angle average of ``texel_supersampling`` ² sub-texels gathered from the photo."""
     if height < 4:
         raise PlateLightError("The probe height must be at least 4 pixels.")
+    if fill not in FILLS:
+        raise PlateLightError(f"The fill must be one of {', '.join(FILLS)}, not '{fill}'.")
     rot = default_camera_rotation() if camera_to_world is None else np.asarray(camera_to_world, float)[:3, :3]
     img = np.asarray(image, dtype=np.float32)
     check_ball(ball, img.shape[1], img.shape[0])
-    probe = area_gather(img, ball, height, rot) / float(reflectance)
+    probe, seen = area_gather(img, ball, height, rot)
+    probe = fill_unseen(probe / float(reflectance), seen > 0, fill)
     r_cam = texel_directions(height, 2 * height) @ rot
     angle_behind = np.degrees(np.arccos(np.clip(-r_cam[..., 2], -1, 1)))   # angle to d
-    confidence = np.clip((180.0 - angle_behind) / rim_deg, 0, 1).astype(np.float32)
-    return probe.astype(np.float32), confidence
+    confidence = np.clip((180.0 - angle_behind) / rim_deg, 0, 1) * seen
+    return probe.astype(np.float32), confidence.astype(np.float32)
+
+
+def fill_unseen(probe: np.ndarray, seen: np.ndarray, fill: str) -> np.ndarray:
+    """Texels no photo pixel showed: the nearest seen texel's value (lat-long distance) or 0."""
+    import cv2
+
+    if seen.all():
+        return probe
+    if fill == "black" or not seen.any():
+        return np.where(seen[..., None], probe, 0)
+    _, labels = cv2.distanceTransformWithLabels((~seen).astype(np.uint8), cv2.DIST_L2, 5,
+                                                labelType=cv2.DIST_LABEL_PIXEL)
+    rows, cols = np.nonzero(seen)                      # label k: the k-th seen texel, row-major
+    source = np.zeros(int(labels.max()) + 1, np.int64)
+    source[labels[rows, cols]] = np.arange(rows.size)
+    pick = source[labels]
+    return np.where(seen[..., None], probe, probe[rows[pick], cols[pick]])
+
+
+def unseen_share(ball: Ball, width: int, height: int, camera_to_world=None, probe_height: int = 128) -> float:
+    """Share of the sphere's solid angle that no pixel of a ``width`` x ``height`` photo shows
+    (a ball cut by the frame), measured on a coarse probe."""
+    rot = default_camera_rotation() if camera_to_world is None else np.asarray(camera_to_world, float)[:3, :3]
+    _, seen = area_gather(np.zeros((height, width, 1), np.float32), ball, probe_height, rot, supersampling=1)
+    sa = texel_solid_angles(probe_height, 2 * probe_height)
+    return float((sa * (1 - seen)).sum() / sa.sum())
 
 
 # Sub-texels gathered at once: bounds the memory of a big photo's fine grid (~100 MB).
 CHUNK_TEXELS = 1 << 22
 
 
-def area_gather(img: np.ndarray, ball: Ball, height: int, rot: np.ndarray) -> np.ndarray:
+def area_gather(img: np.ndarray, ball: Ball, height: int, rot: np.ndarray, supersampling: int | None = None):
     """Each probe texel as the solid-angle weighted mean of its s x s sub-texels' photo
-    values, s = texel_supersampling; gathered a band of rows at a time, in float32 with the
-    lat-long's separable rows and columns (directions as full arrays cost 10x the remap)."""
+    values, s = texel_supersampling, and the share of them inside the photo (seen); gathered a
+    band of rows at a time, in float32 with the lat-long's separable rows and columns
+    (directions as full arrays cost 10x the remap)."""
     import cv2
 
-    s = texel_supersampling(ball, height)
+    s = supersampling or texel_supersampling(ball, height)
     fine = height * s
     azimuth = np.pi * ((np.arange(2 * fine) + 0.5) / fine - 1.0)
     # camera-frame direction R^T w = cos(el)·(cos az·R0 - sin az·R1) + sin(el)·R2, by component
@@ -147,6 +193,8 @@ def area_gather(img: np.ndarray, ball: Ball, height: int, rot: np.ndarray) -> np
     weights = row_solid_angles(fine, 2 * fine)
     channels = img.shape[2] if img.ndim == 3 else 1
     out = np.empty((height, 2 * height, channels), np.float32)
+    seen = np.empty((height, 2 * height), np.float32)
+    height_px, width = img.shape[:2]
     band = max(1, CHUNK_TEXELS // (2 * fine * s))                 # probe rows a band
     for i0 in range(0, height, band):
         i1 = min(height, i0 + band)
@@ -162,12 +210,15 @@ def area_gather(img: np.ndarray, ball: Ball, height: int, rot: np.ndarray) -> np
         map_y = ball.cy - ball.ry * r[1] / norm
         values = cv2.remap(img, map_x.astype(np.float32), map_y.astype(np.float32), cv2.INTER_LINEAR,
                            borderMode=cv2.BORDER_REPLICATE).reshape(i1 * s - i0 * s, 2 * fine, channels)
-        w = weights[rows].astype(np.float32)
-        values *= w[:, None, None]
+        # a sub-texel the frame cuts off the ball (beyond the edge pixels' centres) is not seen
+        inside = (map_x >= -0.5) & (map_x <= width - 0.5) & (map_y >= -0.5) & (map_y <= height_px - 0.5)
+        w = weights[rows].astype(np.float32)[:, None] * inside
+        values *= w[..., None]
         box = (2 * height, i1 - i0)
-        out[i0:i1] = area_mean(values, box) / area_mean(np.broadcast_to(w[:, None], values.shape[:2]).copy(),
-                                                         box)[..., None]
-    return out
+        total = area_mean(w, box)
+        seen[i0:i1] = total / area_mean(np.broadcast_to(weights[rows].astype(np.float32)[:, None], w.shape).copy(), box)
+        out[i0:i1] = area_mean(values, box) / np.maximum(total, 1e-30)[..., None]
+    return out, seen
 
 
 def area_mean(values: np.ndarray, size) -> np.ndarray:

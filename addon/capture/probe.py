@@ -20,6 +20,7 @@ class ProbeResult:
     clipped: dict                     # solid angle and direction of texels clipped in every bracket
     warnings: list[str]
     repair_scale: float | None = None
+    unseen: float = 0.0               # share of the sphere no photo pixel shows (a cut ball)
 
     def report(self) -> dict:
         return {
@@ -27,6 +28,7 @@ class ProbeResult:
             "exposure_times": [float(t) for t in self.times],
             "clipped": self.clipped,
             "repair_scale": self.repair_scale,
+            "unseen_share": round(self.unseen, 4),
             "warnings": self.warnings,
             "response": np.round(self.response, 6).tolist(),
         }
@@ -35,13 +37,15 @@ class ProbeResult:
 def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, height: int = 256,
                camera_to_world=None, rotate_z_deg: float = 0.0, reflectance: float = 1.0,
                card_box=None, card_albedo: float = 0.18, card_normal=None,
-               shared_response: bool = True, align_target=None, align_intrinsics=None) -> ProbeResult:
+               shared_response: bool = True, align_target=None, align_intrinsics=None,
+               fill: str = "nearest") -> ProbeResult:
     """Brackets (files) -> probe. ``camera_to_world``: the photo camera's rotation in the
     scene's frame (e.g. from tracking a marker seen in the photo); ``rotate_z_deg`` then turns
     the probe about +Z (a user alignment). ``align_target`` (a tracking target, with
     ``align_intrinsics``): a marker or board seen in the brackets gives the camera rotation in
     the target's frame, i.e. the tracked scene's (it overrides ``camera_to_world``). ``card_box`` = (x0, y0, x1, y1) pixels of a grey card
-    in the photos, used to repair light clipped in every bracket (hdr_merge.repair_clipped)."""
+    in the photos, used to repair light clipped in every bracket (hdr_merge.repair_clipped).
+    ``fill``: how the directions a ball cut by the frame does not show are filled (mirror_ball.FILLS)."""
     if not (np.isfinite(reflectance) and 0 < reflectance <= 1):
         raise PlateLightError("The ball's reflectance must be in (0, 1].")
     paths = [os.fspath(p) for p in paths]
@@ -64,11 +68,15 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     rot = mirror_ball.default_camera_rotation() if camera_to_world is None else \
         np.asarray(camera_to_world, float)[:3, :3]
     rot = mirror_ball.rotation_z(rotate_z_deg) @ rot
-    probe, confidence = mirror_ball.unwrap(merged.radiance, ball, height, rot, reflectance)
-    clip_map, _ = mirror_ball.unwrap(merged.clipped.astype(np.float32)[..., None], ball, height, rot)
+    probe, confidence = mirror_ball.unwrap(merged.radiance, ball, height, rot, reflectance, fill=fill)
+    clip_map, _ = mirror_ball.unwrap(merged.clipped.astype(np.float32)[..., None], ball, height, rot, fill=fill)
     clipped = clip_map[..., 0] > 0.5
     summary = hdr_merge.clipped_region_summary(clipped)
     warnings = list(merged.warnings) + mirror_ball.ball_warnings(ball, w, h)
+    unseen = mirror_ball.unseen_share(ball, w, h, rot)
+    cut = mirror_ball.cut_warning(ball, w, h, unseen, fill)
+    if cut:
+        warnings.append(cut)
     scale = None
     if card_box is not None:
         if not clipped.any():
@@ -81,7 +89,7 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
             normal = summary["direction"] if card_normal is None else card_normal
             probe, scale = hdr_merge.repair_clipped(probe, clipped, card, card_albedo, normal)
             warnings.append(f"clipped light repaired from the grey card: x{scale:.2f} over its lower bound")
-    return ProbeResult(probe, confidence, ball, times, merged.response, summary, warnings, scale)
+    return ProbeResult(probe, confidence, ball, times, merged.response, summary, warnings, scale, unseen)
 
 
 def camera_from_target(images, target, intrinsics) -> np.ndarray:
