@@ -118,7 +118,7 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             result = make_probe(sorted(paths), exposures=exposures, ball=ball, height=self.height,
                                 rotate_z_deg=math.degrees(self.rotate_z), reflectance=self.reflectance,
                                 card_box=card, card_albedo=self.card_albedo, align_target=align,
-                                align_intrinsics=intrinsics, fill=self.fill)
+                                intrinsics=intrinsics, fill=self.fill)
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:

@@ -96,6 +96,11 @@ class Spec:
                 f"{self.exposure:+.0f} EV, noise {self.noise:g}, jpeg {self.jpeg or '-'}")
 
 
+def focal_px(spec: Spec) -> float:
+    """The pinhole's focal length: a normal lens (about 43 mm on full frame)."""
+    return 1.2 * spec.width
+
+
 def _clutter(width, height, rng) -> np.ndarray:
     """A cluttered backdrop: rectangles and lines of random greys, a few highlights."""
     img = np.full((height, width, 3), 0.2, np.float32)
@@ -116,7 +121,7 @@ def render(spec: Spec, seed: int = 0):
     env = environment(spec.env)
     w, h = spec.width, spec.height
     to_world = rotation_z(spec.yaw) @ default_camera_rotation()
-    focal = 1.2 * w                                          # a normal lens (about 43 mm full frame)
+    focal = focal_px(spec)
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
     rays = np.stack([(xs - (w - 1) / 2) / focal, -(ys - (h - 1) / 2) / focal, -np.ones_like(xs)], -1)
     backdrop = _lookup(env, rays @ to_world.T)

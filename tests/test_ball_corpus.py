@@ -2,6 +2,7 @@
 it runs in `make bench` (docs/bench/capture.md)."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 import ball_corpus as bc
@@ -41,3 +42,24 @@ def test_truth_is_the_silhouette():
     r = 0.25 * 600
     assert abs(truth["rx"] / r - 1) < 0.002 and abs(truth["ry"] / r - 1) < 0.002
     assert abs(truth["cx"] - (399.5 + 0.3 * (400 - r))) < 0.05 and abs(truth["cy"] - (299.5 - 0.2 * (300 - r))) < 0.05
+
+
+def test_lens_given_unwraps_an_off_centre_ball_along_its_ray():
+    """A ball in the frame's corner is seen from the side: with the lens known the unwrap looks
+    along the ball's ray, and the probe's light comes from where the environment's does."""
+    from platelight.addon.capture import mirror_ball
+    from platelight.addon.capture.intrinsics import Intrinsics
+    from platelight.addon.ibl import sh
+
+    spec = bc.Spec("forest", 1600, 1200, 0.25, (0.9, -0.9), reflectance=0.8, yaw=30)
+    _, truth, radiance = bc.render(spec)
+    ball = mirror_ball.Ball(truth["cx"], truth["cy"], truth["rx"], truth["ry"])
+    rot = mirror_ball.rotation_z(spec.yaw) @ mirror_ball.default_camera_rotation()
+    lens = Intrinsics.from_focal_px(bc.focal_px(spec), spec.width, spec.height)
+    env = sh.project_exact(bc.environment(spec.env).astype(float), 2).mean(-1)
+
+    def error(r):
+        c = sh.project_exact(mirror_ball.unwrap(radiance, ball, 64, r, spec.reflectance)[0].astype(float), 2).mean(-1)
+        return np.linalg.norm(c - env) / np.linalg.norm(env)
+    along_axis, along_ray = error(rot), error(rot @ mirror_ball.aim_rotation(ball, lens))
+    assert along_ray < 0.1 and along_axis > 2 * along_ray, (along_axis, along_ray)

@@ -56,8 +56,9 @@ def add_parser(sub) -> None:
                    help="align on an ArUco marker of this side (metres) seen in the photos (the tracked "
                         "scene's marker); needs --focal-px or --focal-mm")
     p.add_argument("--dictionary", default="DICT_4X4_50", help="dictionary of --align-marker")
-    p.add_argument("--focal-px", type=float, help="focal length in pixels (for --align-marker)")
-    p.add_argument("--focal-mm", type=float, help="focal length in mm, with --sensor-width (for --align-marker)")
+    p.add_argument("--focal-px", type=float, help="the photos' focal length in pixels: the unwrap looks along "
+                   "the ray through the ball (an off-centre ball), and --align-marker needs it")
+    p.add_argument("--focal-mm", type=float, help="the focal length in mm, with --sensor-width (as --focal-px)")
     p.add_argument("--sensor-width", type=float, default=36.0, help="sensor width in mm (default 36)")
     p.add_argument("--rotate-z", type=float, default=0.0, metavar="DEG",
                    help="turn the probe about +Z to align it with the tracked scene")
@@ -102,24 +103,25 @@ def run(args) -> int:
     camera = camera_from_poses(args.camera_from, args.frame) if args.camera_from else None
     align, intrinsics = None, None
     if args.align_marker is not None:
-        from ..footage import read_image
-        from .intrinsics import Intrinsics
         from .targets import MarkerTarget
 
         align = MarkerTarget(args.dictionary, args.align_marker)
         if args.focal_px is None and args.focal_mm is None:
             raise PlateLightError("Aligning on a marker needs the camera's focal length (--focal-px or --focal-mm).")
-        if os.path.isfile(args.images[0]):          # (a missing bracket is reported by make_probe)
-            h, w = read_image(args.images[0]).shape[:2]
-            intrinsics = (Intrinsics.from_focal_px(args.focal_px, w, h) if args.focal_px is not None
-                          else Intrinsics.from_lens(args.focal_mm, args.sensor_width, w, h))
+    if (args.focal_px is not None or args.focal_mm is not None) and os.path.isfile(args.images[0]):
+        from ..footage import read_image
+        from .intrinsics import Intrinsics
+
+        h, w = read_image(args.images[0]).shape[:2]     # (a missing bracket is reported by make_probe)
+        intrinsics = (Intrinsics.from_focal_px(args.focal_px, w, h) if args.focal_px is not None
+                      else Intrinsics.from_lens(args.focal_mm, args.sensor_width, w, h))
     t0 = time.perf_counter()
     result = make_probe(args.images, exposures=args.exposures,
                         ball=Ball(*args.ball) if args.ball else None, height=args.height,
                         camera_to_world=camera, rotate_z_deg=args.rotate_z, reflectance=args.reflectance,
                         card_box=args.grey_card, card_albedo=args.card_albedo, card_normal=args.card_normal,
                         shared_response=not args.per_channel_response, align_target=align,
-                        align_intrinsics=intrinsics, fill=args.fill)
+                        intrinsics=intrinsics, fill=args.fill)
     write_exr(args.out, result.probe)
     if args.report:
         write_json_atomic(args.report, result.report())

@@ -37,15 +37,17 @@ class ProbeResult:
 def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, height: int = 256,
                camera_to_world=None, rotate_z_deg: float = 0.0, reflectance: float = 1.0,
                card_box=None, card_albedo: float = 0.18, card_normal=None,
-               shared_response: bool = True, align_target=None, align_intrinsics=None,
+               shared_response: bool = True, align_target=None, intrinsics=None,
                fill: str = "nearest") -> ProbeResult:
     """Brackets (files) -> probe. ``camera_to_world``: the photo camera's rotation in the
     scene's frame (e.g. from tracking a marker seen in the photo); ``rotate_z_deg`` then turns
     the probe about +Z (a user alignment). ``align_target`` (a tracking target, with
-    ``align_intrinsics``): a marker or board seen in the brackets gives the camera rotation in
+    ``intrinsics``): a marker or board seen in the brackets gives the camera rotation in
     the target's frame, i.e. the tracked scene's (it overrides ``camera_to_world``). ``card_box`` = (x0, y0, x1, y1) pixels of a grey card
     in the photos, used to repair light clipped in every bracket (hdr_merge.repair_clipped).
-    ``fill``: how the directions a ball cut by the frame does not show are filled (mirror_ball.FILLS)."""
+    ``intrinsics``: the photos' lens; given, the unwrap looks along the ray through the ball's
+    centre (mirror_ball.aim_rotation) instead of the camera's axis. ``fill``: how the directions
+    a ball cut by the frame does not show are filled (mirror_ball.FILLS)."""
     if not (np.isfinite(reflectance) and 0 < reflectance <= 1):
         raise PlateLightError("The ball's reflectance must be in (0, 1].")
     paths = [os.fspath(p) for p in paths]
@@ -64,10 +66,12 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     h, w = merged.radiance.shape[:2]
     mirror_ball.check_ball(ball, w, h)
     if align_target is not None:
-        camera_to_world = camera_from_target(images, align_target, align_intrinsics)
+        camera_to_world = camera_from_target(images, align_target, intrinsics)
     rot = mirror_ball.default_camera_rotation() if camera_to_world is None else \
         np.asarray(camera_to_world, float)[:3, :3]
     rot = mirror_ball.rotation_z(rotate_z_deg) @ rot
+    if intrinsics is not None:                   # the photo's lens known: look along the ball's ray
+        rot = rot @ mirror_ball.aim_rotation(ball, intrinsics)
     probe, confidence = mirror_ball.unwrap(merged.radiance, ball, height, rot, reflectance, fill=fill)
     clip_map, _ = mirror_ball.unwrap(merged.clipped.astype(np.float32)[..., None], ball, height, rot, fill=fill)
     clipped = clip_map[..., 0] > 0.5
