@@ -50,6 +50,7 @@ PASS_DENOISE = "PlateLight Pass Denoise"   # the temporary scene (and 5.x compos
 # --- footage and grain (operators/plate.py, operators/grain.py)
 PLATE_IMAGE = "PlateLight Plate"
 GRAIN_IMAGE = "PlateLight Grain"
+BALL_CANDIDATES_IMAGE = "PlateLight Ball Candidates"   # the ball photo with the finder's circles drawn
 GRAIN_NODE = "PlateLight Grain"
 
 # --- lens distortion and phantoms (operators/lens.py, node_groups/redistortion.py, phantom_plate.py)

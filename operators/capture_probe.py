@@ -25,6 +25,26 @@ def _numbers(text: str, what: str, count=None):
     return values
 
 
+def _show_candidates(result) -> None:
+    """The ball photo with the finder's circles as a Blender image (replaced on each run)."""
+    import numpy as np
+
+    from ..addon.capture.probe import candidates_picture
+
+    picture = candidates_picture(result.photo, result.candidates, result.ball)
+    h, w = picture.shape[:2]
+    image = bpy.data.images.get(names.BALL_CANDIDATES_IMAGE)
+    if image is not None and tuple(image.size) != (w, h):
+        bpy.data.images.remove(image)
+        image = None
+    if image is None:
+        image = bpy.data.images.new(names.BALL_CANDIDATES_IMAGE, w, h)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = picture[::-1, :, ::-1] / 255.0      # Blender's rows go up, RGB
+    image.pixels.foreach_set(rgba.ravel())
+    image.update()
+
+
 def _ball(text: str):
     """The Ball Circle field: CX,CY,R or, for an elliptical outline, CX,CY,RX,RY."""
     from ..addon.capture.mirror_ball import Ball
@@ -122,13 +142,26 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:
+            from ..addon.capture import ball_finder
+
             report_error(self, err, PROBE_FIELDS)
+            if ball is None and ball_finder.LAST_FITS:      # what was seen, to type into Ball Circle
+                seen = "; ".join(f"{f.cx:.0f},{f.cy:.0f},{f.radius:.0f} ({f.confidence:.2f})"
+                                 for f in ball_finder.LAST_FITS[:3])
+                self.report({"INFO"}, f"Circles the finder saw (CX,CY,R and confidence): {seen}.")
             return {"CANCELLED"}
         finally:
             wm.progress_end()
         self._set_world(context, out)
         for warning in result.warnings:
             self.report({"WARNING"}, worded(warning, PROBE_FIELDS))
+        from ..addon.capture.ball_finder import UNSURE_CONFIDENCE
+
+        if result.ball.confidence is not None and result.ball.confidence < UNSURE_CONFIDENCE:
+            _show_candidates(result)
+            self.report({"WARNING"}, f"The circles the finder saw are drawn in the image "
+                        f"'{names.BALL_CANDIDATES_IMAGE}' (Image Editor): the one used in green; set "
+                        "Ball Circle in the operator's panel to use another.")
         b = result.ball
         self.report({"INFO"}, f"Probe from {len(paths)} photo(s) (ball at {b.cx:.0f}, {b.cy:.0f}, "
                               f"r {b.radius:.0f} px) -> {out}")

@@ -4,6 +4,7 @@ mirror-ball unwrap against an independent forward model, ball finding, the probe
 bad input of issue 7."""
 from __future__ import annotations
 
+import json
 import struct
 
 import cv2
@@ -235,6 +236,15 @@ def test_probe_cli_contract(ball_files, tmp_path):
     assert proc.returncode == 0, proc.stderr
     probe = read_exr(out)
     assert probe.shape == (32, 64, 3)
+    # the report lists the finder's circles, best first, and draws them on the middle bracket
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert abs(report["candidates"][0]["cx"] - report["ball"]["cx"]) < 0.01     # (rounded to 0.01 px)
+    picture = cv2.imread(str(tmp_path / "r.png"))
+    assert picture.shape[:2] == (160, 160)
+    green = (picture[..., 1] > 180) & (picture[..., 0] < 120) & (picture[..., 2] < 120)
+    ring = np.hypot(*(np.mgrid[0:160, 0:160] - 79.5)) - 70.0
+    # the circle used, where the ball is (the rest of the green: its confidence's label)
+    assert green.sum() > 200 and (np.abs(ring[green]) < 4).mean() > 0.7
     truth = downsample_area(env, 32)
     s = (128 / 255) ** 2.2 / 2.0
     mask = mirror_ball.view_angle_deg(32) < 120

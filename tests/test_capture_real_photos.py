@@ -79,6 +79,19 @@ def test_two_balls_are_an_error_that_says_how_to_choose():
         _find(np.hstack([crop, crop[:, ::-1]]))
 
 
+def test_two_balls_through_the_cli_report_both_candidates(tmp_path):
+    """Refused, and --report shows what was seen: both circles, in the JSON and drawn."""
+    crop = _gene_crop()
+    cv2.imwrite(str(tmp_path / "two.jpg"), np.hstack([crop, crop[:, ::-1]]))
+    line = _cli_error(tmp_path / "two.jpg", "--out", tmp_path / "p.exr", "--report", tmp_path / "r.json")
+    assert "Two mirror balls were found" in line and not (tmp_path / "p.exr").exists()
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["error"].startswith("Two mirror balls were found") and "--ball CX,CY,R" in report["error"]
+    centres = sorted(round(c["cx"]) for c in report["candidates"] if c["confidence"] >= 0.3)
+    assert len(centres) == 2 and abs(centres[1] - centres[0] - 600) < 10, centres
+    assert cv2.imread(str(tmp_path / "r.png")).shape[:2] == (600, 1200)
+
+
 def test_blurred_photo_found_or_refused_with_the_reason():
     g = rp.read(rp.BALLS / "gene_miller.jpg")
     truth = rp.ball_truth()["gene_miller.jpg"]

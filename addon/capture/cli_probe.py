@@ -72,8 +72,25 @@ def add_parser(sub) -> None:
     p.add_argument("--fill", choices=FILLS, default="nearest",
                    help="directions a ball cut by the frame does not show: copied from the nearest seen "
                         "ones (default) or left black")
-    p.add_argument("--report", metavar="FILE.json", help="write the ball, response curve and warnings")
+    p.add_argument("--report", metavar="FILE.json", help="write the ball, the finder's candidate circles, the "
+                   "response curve and warnings, and FILE.png: the photo with the circles drawn")
     p.set_defaults(func=run)
+
+
+def write_candidates(report: str, images, fits, err) -> None:
+    """The report of a search that chose no ball: its candidates, the error, their picture."""
+    import cv2
+
+    from ..footage import read_image
+    from .probe import candidate_json, candidates_picture
+
+    write_json_atomic(report, {"error": worded(err, CLI_FLAGS), "candidates": [candidate_json(f) for f in fits]})
+    cv2.imwrite(picture_path(report), candidates_picture(read_image(images[len(images) // 2]), fits))
+
+
+def picture_path(report: str) -> str:
+    """FILE.json -> FILE.png: the report's picture of the candidate circles."""
+    return os.path.splitext(report)[0] + ".png"
 
 
 def camera_from_poses(path: str, frame: int):
@@ -91,9 +108,12 @@ def camera_from_poses(path: str, frame: int):
 
 
 def run(args) -> int:
+    import cv2
+
     from ..exr_io import write_exr
+    from . import ball_finder
     from .mirror_ball import Ball
-    from .probe import make_probe
+    from .probe import candidates_picture, make_probe
 
     if args.height < 4:
         raise PlateLightError("The probe height must be at least 4 pixels.")
@@ -116,15 +136,22 @@ def run(args) -> int:
         intrinsics = (Intrinsics.from_focal_px(args.focal_px, w, h) if args.focal_px is not None
                       else Intrinsics.from_lens(args.focal_mm, args.sensor_width, w, h))
     t0 = time.perf_counter()
-    result = make_probe(args.images, exposures=args.exposures,
-                        ball=Ball(*args.ball) if args.ball else None, height=args.height,
-                        camera_to_world=camera, rotate_z_deg=args.rotate_z, reflectance=args.reflectance,
-                        card_box=args.grey_card, card_albedo=args.card_albedo, card_normal=args.card_normal,
-                        shared_response=not args.per_channel_response, align_target=align,
-                        intrinsics=intrinsics, fill=args.fill)
+    ball_finder.LAST_FITS.clear()
+    try:
+        result = make_probe(args.images, exposures=args.exposures,
+                            ball=Ball(*args.ball) if args.ball else None, height=args.height,
+                            camera_to_world=camera, rotate_z_deg=args.rotate_z, reflectance=args.reflectance,
+                            card_box=args.grey_card, card_albedo=args.card_albedo, card_normal=args.card_normal,
+                            shared_response=not args.per_channel_response, align_target=align,
+                            intrinsics=intrinsics, fill=args.fill)
+    except PlateLightError as err:
+        if args.report and ball_finder.LAST_FITS:      # not found, or two balls: show what was seen
+            write_candidates(args.report, args.images, ball_finder.LAST_FITS, err)
+        raise
     write_exr(args.out, result.probe)
     if args.report:
         write_json_atomic(args.report, result.report())
+        cv2.imwrite(picture_path(args.report), candidates_picture(result.photo, result.candidates, result.ball))
     for w in result.warnings:
         print(f"platelight probe: warning: {worded(w, CLI_FLAGS)}", file=sys.stderr)
     b = result.ball

@@ -21,6 +21,8 @@ class ProbeResult:
     warnings: list[str]
     repair_scale: float | None = None
     unseen: float = 0.0               # share of the sphere no photo pixel shows (a cut ball)
+    candidates: list = dataclasses.field(default_factory=list)   # the finder's circles, best first
+    photo: np.ndarray | None = None   # the bracket the circles are drawn on (BGR)
 
     def report(self) -> dict:
         return {
@@ -29,6 +31,7 @@ class ProbeResult:
             "clipped": self.clipped,
             "repair_scale": self.repair_scale,
             "unseen_share": round(self.unseen, 4),
+            "candidates": [candidate_json(c) for c in self.candidates],
             "warnings": self.warnings,
             "response": np.round(self.response, 6).tolist(),
         }
@@ -56,13 +59,17 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
             raise PlateLightError(f"{len(exposures)} exposure times were given for 1 photo.")
         photo, merged, t = hdr_merge.single_photo(paths[0], exposures[0] if exposures else None)
         images, times = [photo], np.array([t if t else 1.0])
-        if ball is None:
-            ball = mirror_ball.find_ball(photo)
+        searched = photo
     else:
         images, times = hdr_merge.read_brackets(paths, exposures)
         merged = hdr_merge.merge(images, times, shared_response=shared_response)
-        if ball is None:
-            ball = mirror_ball.find_ball(merged.radiance)
+        searched = merged.radiance
+    candidates = []
+    if ball is None:
+        from . import ball_finder
+
+        ball = mirror_ball.find_ball(searched)
+        candidates = list(ball_finder.LAST_FITS)
     h, w = merged.radiance.shape[:2]
     mirror_ball.check_ball(ball, w, h)
     if align_target is not None:
@@ -93,7 +100,42 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
             normal = summary["direction"] if card_normal is None else card_normal
             probe, scale = hdr_merge.repair_clipped(probe, clipped, card, card_albedo, normal)
             warnings.append(f"clipped light repaired from the grey card: x{scale:.2f} over its lower bound")
-    return ProbeResult(probe, confidence, ball, times, merged.response, summary, warnings, scale, unseen)
+    return ProbeResult(probe, confidence, ball, times, merged.response, summary, warnings, scale, unseen,
+                       candidates, images[len(images) // 2])
+
+
+def candidate_json(fit) -> dict:
+    """One of the finder's circles (ball_finder.BallFit) as the report writes it."""
+    return {"cx": round(fit.cx, 2), "cy": round(fit.cy, 2), "rx": round(fit.rx, 2), "ry": round(fit.ry, 2),
+            "confidence": round(fit.confidence, 3)}
+
+
+def candidates_picture(photo: np.ndarray, candidates, used: mirror_ball.Ball | None = None,
+                       longest: int = 1200) -> np.ndarray:
+    """The photo (at most ``longest`` px) with the circle used in green and the finder's other
+    candidates in orange, each labelled with its confidence: what to check when it is unsure."""
+    import cv2
+
+    photo = np.asarray(photo)
+    if photo.dtype != np.uint8:                  # 16-bit or float: to 8-bit for the picture
+        top = float(np.percentile(photo, 99.5)) or 1.0
+        photo = np.clip(photo / top * 255, 0, 255).astype(np.uint8)
+    if photo.ndim == 2:
+        photo = cv2.cvtColor(photo, cv2.COLOR_GRAY2BGR)
+    scale = min(1.0, longest / max(photo.shape[:2]))
+    out = cv2.resize(photo, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else photo.copy()
+    circles = [(c.cx, c.cy, c.rx, c.ry, c.confidence, False) for c in candidates
+               if used is None or (c.cx, c.cy) != (used.cx, used.cy)]
+    if used is not None:
+        circles.append((used.cx, used.cy, used.radius, used.ry, used.confidence, True))
+    for cx, cy, rx, ry, conf, chosen in circles:
+        colour = (60, 220, 60) if chosen else (0, 150, 255)
+        centre = (int(round((cx + 0.5) * scale - 0.5)), int(round((cy + 0.5) * scale - 0.5)))
+        cv2.ellipse(out, centre, (max(1, int(round(rx * scale))), max(1, int(round(ry * scale)))), 0, 0, 360,
+                    colour, 2, cv2.LINE_AA)
+        label = "given" if conf is None else f"{conf:.2f}"
+        cv2.putText(out, label, (centre[0] + 4, centre[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.6, colour, 2, cv2.LINE_AA)
+    return out
 
 
 def camera_from_target(images, target, intrinsics) -> np.ndarray:

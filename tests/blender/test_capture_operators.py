@@ -156,6 +156,28 @@ def test_captured_probe_lights_the_bake_as_the_turned_brightened_world_shows_it(
     assert np.abs(unturned - turned.maps["diffuse"]).max() > 0.1 * unturned.max()   # the turn shows
 
 
+def test_capture_probe_unsure_ball_is_shown_with_its_circles(bpy_clean, tmp_path):
+    """A ball found on little of its rim (a corpus photo: a bright sky behind, a stand): the
+    probe is made, and the photo with the circle used is an image to check it on."""
+    import ball_corpus as bc
+
+    bpy = bpy_clean
+    spec = bc.Spec("overcast", 1200, 900, 0.52, (-0.5, -0.85), reflectance=0.885, backdrop="bright",
+                   holder="stand", exposure=1, jpeg=75, yaw=220)
+    photo, truth, _ = bc.render(spec, seed=21)
+    cv2.imwrite(str(tmp_path / "ball.png"), photo)
+    result = bpy.ops.platelight.capture_probe(directory=str(tmp_path), files=[{"name": "ball.png"}], height=32)
+    assert result == {"FINISHED"}
+    image = bpy.data.images["PlateLight Ball Candidates"]
+    w, h = image.size
+    assert (w, h) == (1200, 900)
+    rgba = np.array(image.pixels[:]).reshape(h, w, 4)[::-1]
+    green = (rgba[..., 1] > 0.7) & (rgba[..., 0] < 0.47) & (rgba[..., 2] < 0.47)
+    ys, xs = np.nonzero(green)
+    ring = np.hypot(xs - truth["cx"], ys - truth["cy"]) / (0.5 * (truth["rx"] + truth["ry"]))
+    assert green.sum() > 500 and (np.abs(ring - 1) < 0.03).mean() > 0.7
+
+
 def test_capture_probe_failure_leaves_scene_unchanged(bpy_clean, ball_photos, tmp_path):
     bpy = bpy_clean
     folder, names, _ = ball_photos
