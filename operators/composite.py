@@ -35,7 +35,7 @@ from . import motion
 from .baked_shadows import baked_is_current
 from .common import classify_objects, find_plate_image, set_plate_colour_management
 from .eevee_check import NO_GL_SENTENCE, eevee_available
-from .phantom_surface import apply_phantom_surfaces
+from .phantoms import apply_phantom_surfaces
 
 
 def smooth_without_denoiser(ob) -> bool:
