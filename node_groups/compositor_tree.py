@@ -1,7 +1,7 @@
 """The scene's compositor tree "PlateLight Composite": the plate, the render layers and the
 "PlateLight Differential" group (node_groups/composite.py) wired to the output; the grain image
 that platelight.match_grain made, wired into the group; and the File Output of the passes.
-Rebuilt in place by platelight.setup_composite (operators/composite.py)."""
+Rebuilt in place by platelight.setup_composite (operators/composite/)."""
 import bpy
 
 from .. import compat

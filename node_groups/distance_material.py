@@ -1,7 +1,7 @@
 """The temporary material that emits each surface's distance from the camera (Camera Data's View
 Distance; for a panoramic camera the radial distance from its centre) in R, and its object's pass
 index in G: the probe bake's distance maps (operators/bake/distance_render.py, R only) and the
-plate frame's phantom distances and objects (operators/phantom_albedo.py) are renders of it. Made
+plate frame's phantom distances and objects (operators/phantoms.py) are renders of it. Made
 on first use, removed after."""
 import bpy
 

@@ -1,5 +1,5 @@
 """The material "PlateLight Phantom Plate" (names.PHANTOM_PLATE_MATERIAL): a diffuse surface
-whose albedo is the real surface's, estimated from the plate (operators/phantom_albedo.py:
+whose albedo is the real surface's, estimated from the plate (operators/phantoms.py:
 plate / the phantoms rendered white), projected from the camera pose of the frame it was made
 at. Shaded by the scene's lights it shows the plate where nothing changes, and the CG's shadows
 and light where the CG is: in reflections on CG, in light bounced onto CG, in probes, and on the

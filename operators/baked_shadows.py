@@ -34,7 +34,7 @@ from .bake.probe_render import ProbeRenderer
 from .bake.scene_state import SceneState
 from . import motion
 from .common import GEOMETRY_TYPES, classify_objects
-from .phantom_surface import apply_phantom_surfaces
+from .phantoms import apply_phantom_surfaces
 
 
 def uses_baked_shadows(scene) -> bool:

@@ -27,7 +27,6 @@ from ...addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, MapSettings, compute_maps,
                                prepare_environment, write_maps)
 from ..common import GEOMETRY_TYPES, addon_preferences
-from ..phantom_surface import apply_phantom_surfaces
 from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin, wants_behind_layer,
                      renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
 from . import distance_render
@@ -126,6 +125,7 @@ class ProbeBake:
         if not self.check_only:
             layout.check_writable(root)
             # before any hash: the plate projected onto phantoms (or their own materials)
+            from ..phantoms import apply_phantom_surfaces   # phantoms imports this package's SceneState
             apply_phantom_surfaces(scene, [ob for ob in scene.objects if ob.platelight.phantom])
         self._plan()
 

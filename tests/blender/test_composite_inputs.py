@@ -1,5 +1,6 @@
 """Plate and composite set-up: bad input gets one clear sentence and leaves the scene as it was;
 8-bit plates round-trip exactly; sequences keep their frame numbers; re-running never duplicates."""
+import importlib
 import math
 
 import numpy as np
@@ -74,6 +75,57 @@ def test_composite_needs_a_camera(bpy_clean):
     add_sphere(bpy, bpy.context.scene)
     with pytest.raises(RuntimeError, match="needs a camera"):
         bpy.ops.platelight.setup_composite()
+
+
+def _ext(module):
+    return importlib.import_module(f"{support.EXT_MODULE}.{module}")
+
+
+def test_setup_composite_as_a_function(bpy_clean, tmp_path):
+    """setup_composite(scene), the operator's work as a function: a refusal is a PlateLightError
+    with the operator's sentence and leaves the scene as it was; a run returns the report's lines
+    and uses the route's view layers."""
+    bpy = bpy_clean
+    composite, errors = _ext("operators.composite"), _ext("addon.errors")
+    scene = basic_scene(bpy, tmp_path)
+    before = scene_state(bpy)
+    with pytest.raises(errors.PlateLightError, match="No plate found"):
+        composite.setup_composite(scene)
+    assert scene_state(bpy) == before
+    random_plate(tmp_path / "plate.exr")
+    bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr"))
+    before = scene_state(bpy)
+    with pytest.raises(errors.PlateLightError, match="needs the shot's shadows"):
+        composite.setup_composite(scene, method="BAKED")
+    assert scene_state(bpy) == before
+    lines = composite.setup_composite(scene, method="LAYERED", samples=4)
+    assert [level for level, _ in lines] == ["INFO"], lines
+    assert lines[0][1].startswith("Composite set up (layered, cycles): 1 CG object(s)"), lines
+    assert {layer.name for layer in scene.view_layers if layer.use} == composite.ROUTES["LAYERED"].layers
+
+
+def test_choose_route_asks_for_the_scene_only_where_a_bake_could_serve(bpy_module):
+    routes, errors = _ext("operators.composite.routes"), _ext("addon.errors")
+
+    def never():
+        raise AssertionError("asked without a bake to use")
+
+    choice = routes.choose_route("AUTO", "CYCLES", baked=False, motion_blur=False, motions=never,
+                                 is_current=never)
+    assert (choice.route.name, choice.engine, choice.reports, choice.current) == ("CATCHER", "CYCLES", (), None)
+    choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=dict,
+                                 is_current=lambda: True)
+    assert (choice.route.name, choice.reports, choice.current) == ("BAKED", (), True)
+    choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=dict,
+                                 is_current=lambda: False)
+    assert choice.route.name == "CATCHER" and choice.current is False
+    assert choice.reports == (("WARNING", "The baked shadows do not match the scene any more: the Shadow "
+                               "Catcher renders them instead; run Bake Shadows again to use them."),)
+    choice = routes.choose_route("BAKED", "CYCLES", baked=True, motion_blur=False, motions=dict,
+                                 is_current=never)        # hashed after the build
+    assert (choice.route.name, choice.current) == ("BAKED", None)
+    with pytest.raises(errors.PlateLightError, match="Motion Blur off"):
+        routes.choose_route("CATCHER", "EEVEE", baked=False, motion_blur=True, motions=never, is_current=never)
 
 
 def test_no_phantoms_still_composites_and_says_so(bpy_clean, tmp_path, capfd):

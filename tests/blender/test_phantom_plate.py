@@ -70,7 +70,7 @@ def _probe_view(bpy, scene, path):
 def test_phantom_shows_the_plate_to_probes(bpy_clean, tmp_path):
     """Seen from the plate's camera under the scene's light, the phantom floor is the plate itself
     (its albedo times the light it gets: the plate divided and multiplied by the same shading)."""
-    from platelight.operators.phantom_surface import apply_phantom_surfaces
+    from platelight.operators.phantoms import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
@@ -83,7 +83,7 @@ def test_phantom_shows_the_plate_to_probes(bpy_clean, tmp_path):
     assert apply_phantom_surfaces(scene, [floor]) == 1
     seen = _probe_view(bpy, scene, tmp_path / "seen.exr")
     err = (np.abs(seen - plate) / plate)[2:-2, 2:-2]      # the rim: the denoiser's edge effects
-    # the worst pixel carries the white render's noise (4 samples + OIDN, operators/phantom_albedo.py
+    # the worst pixel carries the white render's noise (4 samples + OIDN, operators/phantoms.py
     # ALBEDO_SAMPLES): measured 0.022 (0.015 at 16 samples), the median 0.0006 (0.0013)
     assert np.median(err) < 2e-3 and err.max() < 3e-2, (float(np.median(err)), float(err.max()))
 
@@ -91,7 +91,7 @@ def test_phantom_shows_the_plate_to_probes(bpy_clean, tmp_path):
 def test_phantom_plate_goes_through_the_calibrated_lens(bpy_clean, tmp_path):
     """With a distorted calibration the render camera is the overscan pinhole: from it the
     phantom looks like the plate undistorted by lens.undistort_to_render."""
-    from platelight.operators.phantom_surface import apply_phantom_surfaces
+    from platelight.operators.phantoms import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
@@ -209,7 +209,7 @@ def test_chrome_sphere_reflects_the_real_floor(bpy_clean, tmp_path, surface):
 
 
 def test_object_linked_materials_come_back(bpy_clean, tmp_path):
-    from platelight.operators.phantom_surface import apply_phantom_surfaces
+    from platelight.operators.phantoms import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
@@ -253,7 +253,7 @@ def test_filmed_phantoms_show_the_plate_only_where_the_camera_filmed_them(bpy_cl
     from bpy_extras.object_utils import world_to_camera_view
 
     from platelight.addon import names
-    from platelight.operators.phantom_surface import apply_phantom_surfaces
+    from platelight.operators.phantoms import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
@@ -317,7 +317,7 @@ def test_a_phantom_hidden_from_the_camera_keeps_its_own_albedo(bpy_clean, tmp_pa
     of it), not the albedo of whatever hid it. Seen from above under a white sky, direct light
     only, the path-traced (unfilmed) surfaces: the hidden floor is as grey as the filmed floor."""
     from platelight.addon import names
-    from platelight.operators.phantom_surface import apply_phantom_surfaces
+    from platelight.operators.phantoms import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
@@ -385,7 +385,7 @@ def test_a_new_plate_reaches_the_next_render_with_persistent_data(bpy_clean, tmp
     phantoms up again for another plate rewrites their maps under the same file names; the next
     render must show the new plate, not the images Cycles kept from the last one."""
     from platelight.addon import names
-    from platelight.operators.phantom_surface import apply_phantom_surfaces
+    from platelight.operators.phantoms import apply_phantom_surfaces
 
     bpy = bpy_clean
     scene = bpy.context.scene
@@ -412,7 +412,7 @@ def test_a_new_plate_reaches_the_next_render_with_persistent_data(bpy_clean, tmp
 def test_filmed_radiance_takes_phantoms_the_frame_does_not_show(bpy_clean):
     """A phantom out of the frame (no pixel) or a sliver (no pixel inside its silhouette) leaves
     the radiance map as it is, filmed nowhere, instead of failing the set-up."""
-    from platelight.operators.phantom_albedo import _filmed_radiance
+    from platelight.operators.phantoms import _filmed_radiance
 
     pixels = np.full((40, 60, 3), 0.3, np.float32)
     distance = np.full((40, 60), 5.0, np.float32)
