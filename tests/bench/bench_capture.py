@@ -223,7 +223,9 @@ def bench_corpus(count: int = CORPUS_SIZE):
                     ball = mirror_ball.Ball(fit.cx, fit.cy, fit.rx, fit.ry)
                     c_e = sh.project_exact(bc.environment(spec.env).astype(np.float64), 2).mean(-1)
                     lens = Intrinsics.from_focal_px(bc.focal_px(spec), spec.width, spec.height)
-                    for key, r in (("sh9", rot), ("sh9_lens", rot @ mirror_ball.aim_rotation(ball, lens))):
+                    # an orthographic photo has no lens: its ray is the camera's axis either way
+                    aimed = rot if spec.camera == "orthographic" else rot @ mirror_ball.aim_rotation(ball, lens)
+                    for key, r in (("sh9", rot), ("sh9_lens", aimed)):
                         probe, _ = mirror_ball.unwrap(radiance, ball, 64, r, spec.reflectance)
                         c_p = sh.project_exact(probe.astype(np.float64), 2).mean(-1)
                         row[key] = float(np.linalg.norm(c_p - c_e) / np.linalg.norm(c_e))
