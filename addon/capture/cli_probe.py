@@ -136,7 +136,6 @@ def run(args) -> int:
         intrinsics = (Intrinsics.from_focal_px(args.focal_px, w, h) if args.focal_px is not None
                       else Intrinsics.from_lens(args.focal_mm, args.sensor_width, w, h))
     t0 = time.perf_counter()
-    ball_finder.LAST_FITS.clear()
     try:
         result = make_probe(args.images, exposures=args.exposures,
                             ball=Ball(*args.ball) if args.ball else None, height=args.height,

@@ -143,6 +143,14 @@ def unwrap(image: np.ndarray, ball: Ball, height: int = 256, camera_to_world=Non
     confidence in [0, 1] falls to 0 in the blind spot behind the ball and where the frame cuts
     the ball; such unseen texels are filled as ``fill`` says (FILLS). Each texel is the
     solid-angle average of ``texel_supersampling`` ² sub-texels gathered from the photo."""
+    probe, confidence, _ = unwrap_seen(image, ball, height, camera_to_world, reflectance, rim_deg, fill)
+    return probe, confidence
+
+
+def unwrap_seen(image: np.ndarray, ball: Ball, height: int = 256, camera_to_world=None,
+                reflectance: float = 1.0, rim_deg: float = 10.0, fill: str = "nearest"):
+    """``unwrap``, and the share of each texel's sub-texels that lie inside the photo (0 where
+    the frame cuts the ball off)."""
     if height < 4:
         raise PlateLightError("The probe height must be at least 4 pixels.")
     if fill not in FILLS:
@@ -155,7 +163,7 @@ def unwrap(image: np.ndarray, ball: Ball, height: int = 256, camera_to_world=Non
     r_cam = texel_directions(height, 2 * height) @ rot
     angle_behind = np.degrees(np.arccos(np.clip(-r_cam[..., 2], -1, 1)))   # angle to d
     confidence = np.clip((180.0 - angle_behind) / rim_deg, 0, 1) * seen
-    return probe.astype(np.float32), confidence.astype(np.float32)
+    return probe.astype(np.float32), confidence.astype(np.float32), seen
 
 
 def fill_unseen(probe: np.ndarray, seen: np.ndarray, fill: str) -> np.ndarray:
@@ -175,12 +183,9 @@ def fill_unseen(probe: np.ndarray, seen: np.ndarray, fill: str) -> np.ndarray:
     return np.where(seen[..., None], probe, probe[rows[pick], cols[pick]])
 
 
-def unseen_share(ball: Ball, width: int, height: int, camera_to_world=None, probe_height: int = 128) -> float:
-    """Share of the sphere's solid angle that no pixel of a ``width`` x ``height`` photo shows
-    (a ball cut by the frame), measured on a coarse probe."""
-    rot = default_camera_rotation() if camera_to_world is None else np.asarray(camera_to_world, float)[:3, :3]
-    _, seen = area_gather(np.zeros((height, width, 1), np.float32), ball, probe_height, rot, supersampling=1)
-    sa = texel_solid_angles(probe_height, 2 * probe_height)
+def unseen_share(seen: np.ndarray) -> float:
+    """Share of the sphere's solid angle that no photo pixel shows, from ``unwrap_seen``'s seen."""
+    sa = texel_solid_angles(*seen.shape)
     return float((sa * (1 - seen)).sum() / sa.sum())
 
 
@@ -188,14 +193,14 @@ def unseen_share(ball: Ball, width: int, height: int, camera_to_world=None, prob
 CHUNK_TEXELS = 1 << 22
 
 
-def area_gather(img: np.ndarray, ball: Ball, height: int, rot: np.ndarray, supersampling: int | None = None):
+def area_gather(img: np.ndarray, ball: Ball, height: int, rot: np.ndarray):
     """Each probe texel as the solid-angle weighted mean of its s x s sub-texels' photo
     values, s = texel_supersampling, and the share of them inside the photo (seen); gathered a
     band of rows at a time, in float32 with the lat-long's separable rows and columns
     (directions as full arrays cost 10x the remap)."""
     import cv2
 
-    s = supersampling or texel_supersampling(ball, height)
+    s = texel_supersampling(ball, height)
     fine = height * s
     azimuth = np.pi * ((np.arange(2 * fine) + 0.5) / fine - 1.0)
     # camera-frame direction R^T w = cos(el)·(cos az·R0 - sin az·R1) + sin(el)·R2, by component

@@ -7,7 +7,7 @@ import os
 import numpy as np
 
 from ..errors import PlateLightError
-from . import hdr_merge, mirror_ball
+from . import ball_finder, hdr_merge, mirror_ball
 
 
 @dataclasses.dataclass
@@ -54,6 +54,7 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     if not (np.isfinite(reflectance) and 0 < reflectance <= 1):
         raise PlateLightError("The ball's reflectance must be in (0, 1].")
     paths = [os.fspath(p) for p in paths]
+    ball_finder.LAST_FITS.clear()                 # a failed run shows only what it saw itself
     if len(paths) == 1:                           # one phone photo: an LDR probe, with a warning
         if exposures is not None and len(exposures) != 1:
             raise PlateLightError(f"{len(exposures)} exposure times were given for 1 photo.")
@@ -66,8 +67,6 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
         searched = merged.radiance
     candidates = []
     if ball is None:
-        from . import ball_finder
-
         ball = mirror_ball.find_ball(searched)
         candidates = list(ball_finder.LAST_FITS)
     h, w = merged.radiance.shape[:2]
@@ -79,12 +78,14 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     rot = mirror_ball.rotation_z(rotate_z_deg) @ rot
     if intrinsics is not None:                   # the photo's lens known: look along the ball's ray
         rot = rot @ mirror_ball.aim_rotation(ball, intrinsics)
-    probe, confidence = mirror_ball.unwrap(merged.radiance, ball, height, rot, reflectance, fill=fill)
-    clip_map, _ = mirror_ball.unwrap(merged.clipped.astype(np.float32)[..., None], ball, height, rot, fill=fill)
-    clipped = clip_map[..., 0] > 0.5
+    # the clipped mask rides along as a fourth channel: one gather for both
+    stacked = np.dstack([merged.radiance, merged.clipped.astype(np.float32)])
+    unwrapped, confidence, seen = mirror_ball.unwrap_seen(stacked, ball, height, rot, fill=fill)
+    probe = unwrapped[..., :3] / float(reflectance)
+    clipped = unwrapped[..., 3] > 0.5
     summary = hdr_merge.clipped_region_summary(clipped)
     warnings = list(merged.warnings) + mirror_ball.ball_warnings(ball, w, h)
-    unseen = mirror_ball.unseen_share(ball, w, h, rot)
+    unseen = mirror_ball.unseen_share(seen)
     cut = mirror_ball.cut_warning(ball, w, h, unseen, fill)
     if cut:
         warnings.append(cut)
