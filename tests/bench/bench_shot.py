@@ -1,0 +1,488 @@
+"""The shot benchmark against Cycles' shadow catcher, in one invocation (issue 47's protocol).
+
+Each scene is a CG object on stand-ins for real surfaces (phantoms) under an environment, filmed
+by a camera orbiting 20 degrees over a 24-frame shot; frames 1, 12 and 24 are rendered and scored.
+The truth is Cycles path-traced with the CG there, the plate the same without it, each the mean
+of two halves of independent seeds: the halves' difference is the truth's own noise, so every
+score is judged against the truth's ceiling. The routes follow the user's order (plate first,
+then the bakes) and run interleaved: each row of a scene once, then each again, three times, so
+the machine's load falls on all alike; times are the median of the repeats, with their spread.
+The reference is the shadow catcher as a skilled artist sets it up (tests/shot_catcher.py).
+
+Writes docs/bench/shot_<W>x<H>.md, .png and _rows.json from this run alone.
+
+Run: `make bench-shot` (960x540; `make bench-shot-gpu` with Cycles on a GPU). Environment: PLATELIGHT_BENCH_SIZE=WxH,
+PLATELIGHT_BENCH_SCENES="a;b" (a subset, by name), PLATELIGHT_BENCH_REPEATS (3),
+PLATELIGHT_BENCH_TRUTH_HALF_SPP (each truth half's samples; 1024),
+PLATELIGHT_BENCH_CATCHER_SPP=4,16,64,256,1024, PLATELIGHT_BENCH_CG_SPP=1,4,16 (the default route's
+CG samples), PLATELIGHT_BENCH_ROUTES=platelight,catcher (a subset of route keys).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE))
+import bench_composite as bc  # noqa: E402  (the sphere, the box, the camera and render())
+import conftest  # noqa: E402
+import shot_catcher  # noqa: E402
+import shot_protocol as sp  # noqa: E402
+import support  # noqa: E402
+from platelight.addon.exr_io import read_exr, write_exr  # noqa: E402
+from support import compat  # noqa: E402
+
+SIZE = os.environ.get("PLATELIGHT_BENCH_SIZE", "960x540")
+REPEATS = int(os.environ.get("PLATELIGHT_BENCH_REPEATS", 3))
+TRUTH_HALF_SPP = int(os.environ.get("PLATELIGHT_BENCH_TRUTH_HALF_SPP", 1024))
+SHOT_FRAMES = 24
+SCORED_FRAMES = (1, 12, 24)
+ORBIT_DEGREES = 20.0
+CACHE = support.REPO / "bench_out" / "shot"
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    hdri: str              # a bundled HDRI's name, or one of ball_corpus.ANALYTIC
+    floor: str             # "grey" (Lambertian), "photo" (a photograph's texture), "tiles" (glossy)
+    material: str          # a bench_composite.MATERIALS key
+    box: bool = False      # a red phantom box beside the sphere
+    noise: float = 0.0     # the plate's sensor noise (standard deviation at mid-grey)
+
+
+# in the order they run: a run stopped early reports what it has
+SCENES = {
+    "hard sun, photo floor, diffuse": Scene("hard_sun", "photo", "diffuse"),
+    "city, grey floor, mirror + box": Scene("city", "grey", "mirror", box=True),
+    "overcast, glossy tiles, glossy": Scene("overcast", "tiles", "glossy"),
+    "lamp room, grey floor, anisotropic": Scene("lamp_room", "grey", "anisotropic"),
+    "city, noisy plate, diffuse": Scene("city", "photo", "diffuse", noise=0.01),
+}
+
+
+def counts(variable, default):
+    return tuple(int(v) for v in os.environ.get(variable, default).split(",") if v)
+
+
+# route key: (label, runs it, sample counts)
+ROUTES = {
+    "platelight": ("platelight (default)", "platelight", counts("PLATELIGHT_BENCH_CG_SPP", "1,4,16")),
+    "paper": ("platelight (paper's model)", "paper", (16,)),
+    "catcher": ("catcher", "catcher", counts("PLATELIGHT_BENCH_CATCHER_SPP", "4,16,64,256,1024")),
+    # PlateLight's shadow bake caps diffuse bounces at 3: the catcher is offered the same cap
+    "catcher_3": ("catcher, 3 diffuse bounces", "catcher", (16, 64)),
+}
+REFERENCE = "catcher"
+
+
+# ------------------------------------------------------------------ scene building
+
+def environment_path(name: str) -> str:
+    """A bundled HDRI's path, or an analytic one written once into the cache."""
+    import ball_corpus
+
+    if name not in ball_corpus.ANALYTIC:
+        return str(ball_corpus.bundled_hdris()[name])
+    path = CACHE / "hdri" / f"{name}.exr"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_exr(path, ball_corpus.environment(name, 1024))
+    return str(path)
+
+
+def floor_photo_path() -> str:
+    """A floor texture from a photograph: the paving below the horizon of the bundled
+    'courtyard' HDRI, flattened to a square and scaled to a mean albedo of 0.35."""
+    import cv2
+    import ball_corpus
+
+    path = CACHE / "floor_photo.exr"
+    if not path.exists():
+        image = read_exr(ball_corpus.bundled_hdris()["courtyard"])
+        h, w = image.shape[:2]
+        crop = image[int(0.78 * h):int(0.95 * h), : w // 2]
+        crop = cv2.resize(crop, (512, 512), interpolation=cv2.INTER_AREA)
+        crop *= 0.35 / float((crop @ sp.LUMINANCE).mean())
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_exr(path, np.clip(crop, 0, 0.95))
+    return str(path)
+
+
+def floor_material(bpy, kind: str):
+    mat = compat().new_material("Floor")
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    bsdf.inputs["Roughness"].default_value = 1.0 if kind != "tiles" else 0.15
+    if kind == "grey":
+        bsdf.inputs["Base Color"].default_value = (0.45, 0.45, 0.45, 1)
+    else:
+        coords = nt.nodes.new("ShaderNodeTexCoord")
+        mapping = nt.nodes.new("ShaderNodeMapping")
+        mapping.inputs["Scale"].default_value = (0.8, 0.8, 0.8)       # a tile 1.25 m across
+        nt.links.new(coords.outputs["Object"], mapping.inputs["Vector"])
+        if kind == "photo":
+            tex = nt.nodes.new("ShaderNodeTexImage")
+            tex.image = bpy.data.images.load(floor_photo_path())
+        else:
+            tex = nt.nodes.new("ShaderNodeTexChecker")
+            tex.inputs["Color1"].default_value = (0.55, 0.52, 0.48, 1)
+            tex.inputs["Color2"].default_value = (0.18, 0.2, 0.24, 1)
+            tex.inputs["Scale"].default_value = 2.0
+        nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+        nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    return mat
+
+
+def build(bpy, spec: Scene, frame: int = 1):
+    """The scene with its CG sphere, floor (and box) and the camera keyed at scene frames
+    1..len(SCORED_FRAMES) to the shot's scored frames; (scene, cg, phantoms)."""
+    width, height = (int(v) for v in SIZE.split("x"))
+    bc.W, bc.H = width, height
+    scene, floor, sphere = bc.build(bpy, environment_path(spec.hdri), bc.MATERIALS[spec.material],
+                                    camera=shot_camera(1, spec.box), box=bc.BOX if spec.box else None)
+    scene.cycles.seed = 0
+    floor.data.materials[0] = floor_material(bpy, spec.floor)
+    floor.active_material = floor.data.materials[0]
+    floor.data.uv_layers.new()
+    phantoms = [floor] + ([scene.objects["Box"]] if spec.box else [])
+    key_camera(scene, spec.box)
+    scene.frame_set(frame)
+    bc.set_device(scene)
+    return scene, [sphere], phantoms
+
+
+def shot_camera(frame: int, box: bool):
+    location, target, lens = bc.BOX_VIEW if box else bc.CAMERA
+    angle = math.radians(ORBIT_DEGREES) * (frame - 1) / (SHOT_FRAMES - 1)
+    c, s = math.cos(angle), math.sin(angle)
+    x, y, z = location
+    return (c * x - s * y, s * x + c * y, z), target, lens
+
+
+def key_camera(scene, box: bool):
+    from mathutils import Vector
+
+    cam = scene.camera
+    for index, frame in enumerate(SCORED_FRAMES, start=1):
+        location, target, lens = shot_camera(frame, box)
+        cam.location = location
+        cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+        cam.data.lens = lens
+        cam.keyframe_insert("location", frame=index)
+        cam.keyframe_insert("rotation_euler", frame=index)
+        cam.data.keyframe_insert("lens", frame=index)
+    scene.frame_start, scene.frame_end = 1, len(SCORED_FRAMES)
+
+
+# ------------------------------------------------------------------ truths, plates, masks
+
+def truth_set(bpy, name: str, spec: Scene):
+    """Per scored frame, cached: the truth's two halves, the plate's two halves (the same seeds:
+    their noise cancels in the ratio where the CG changes nothing), the CG's coverage (alpha).
+    Returns dict of lists."""
+    folder = CACHE / SIZE / slug(name)
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {"truth": [], "plate": [], "halves": ([], []), "alpha": []}
+    for index in range(1, len(SCORED_FRAMES) + 1):
+        halves = {}
+        for kind, with_cg in (("truth", True), ("plate", False)):
+            for half in (1, 2):
+                path = folder / f"{kind}_{index}_{half}_{TRUTH_HALF_SPP}.exr"
+                if not path.exists():
+                    scene, cg, _ = build(bpy, spec, index)
+                    scene.cycles.samples = TRUTH_HALF_SPP
+                    scene.cycles.use_denoising = False
+                    scene.cycles.blur_glossy = 0.0
+                    scene.cycles.seed = half
+                    for ob in cg:
+                        ob.hide_render = not with_cg
+                    _, took = bc.render(bpy, scene, path)
+                    print(f"{name}: {path.name} {took:.0f} s", flush=True)
+                halves[kind, half] = read_exr(path)
+        path = folder / f"alpha_{index}.exr"
+        if not path.exists():
+            scene, cg, phantoms = build(bpy, spec, index)
+            scene.render.film_transparent = True
+            scene.cycles.samples, scene.cycles.max_bounces = 16, 0
+            scene.cycles.use_denoising = False
+            for ob in phantoms:
+                ob.hide_render = True
+            bc.render(bpy, scene, path)
+        out["alpha"].append(read_exr(path, "RGBA")[..., 3])
+        out["truth"].append((halves["truth", 1] + halves["truth", 2]) / 2)
+        out["plate"].append((halves["plate", 1] + halves["plate", 2]) / 2)
+        out["halves"][0].append(halves["truth", 1])
+        out["halves"][1].append(halves["truth", 2])
+    # footage's noise: the plate and the truth (the same camera) carry the same grain
+    for index in range(len(SCORED_FRAMES)):
+        grain = sp.sensor_noise(out["plate"][index], spec.noise, seed=100 + index)
+        out["plate"][index] = out["plate"][index] + grain
+        out["truth"][index] = out["truth"][index] + grain
+    plate_dir = folder / f"plates_{TRUTH_HALF_SPP}"
+    plate_dir.mkdir(exist_ok=True)
+    for index, plate in enumerate(out["plate"], start=1):
+        write_exr(plate_dir / f"plate_{index:04d}.exr", plate)
+    out["plate_path"] = plate_dir / "plate_0001.exr"
+    return out
+
+
+def masks_of(data):
+    """(object, shadow, frame) masks per scored frame."""
+    import cv2
+
+    objects, shadows, frames = [], [], []
+    for alpha, truth, plate in zip(data["alpha"], data["truth"], data["plate"]):
+        covered = alpha > 0.999
+        objects.append(cv2.erode(covered.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool))
+        near = cv2.dilate((alpha > 0.001).astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+        shadows.append(sp.shadow_mask(truth, plate, near))
+        frames.append(np.ones_like(covered))
+    return objects, shadows, frames
+
+
+def slug(name: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in name).strip("_")
+
+
+# ------------------------------------------------------------------ the routes
+
+def run_platelight(bpy, spec, data, samples, out_dir, paper=False):
+    """The README's order: plate, Apply SBRDF, Bake Probes, Bake Shadows, Set Up Composite."""
+    scene, cg, phantoms = build(bpy, spec)
+    scene.platelight.property_unset("phantom_surface")     # a user's scene: the plate on the phantoms
+    for ob in phantoms:
+        ob.platelight.phantom = True
+    t0 = time.perf_counter()
+    assert bpy.ops.platelight.setup_plate(filepath=str(data["plate_path"])) == {"FINISHED"}
+    bake_s = bc.sbrdf_sphere(bpy, scene, cg[0], out_dir / "frame", paper=paper,
+                             route="sbrdf_paper" if paper else "sbrdf")
+    t1 = time.perf_counter()
+    assert bpy.ops.platelight.bake_shadows() == {"FINISHED"}
+    bake_s += time.perf_counter() - t1
+    assert bpy.ops.platelight.setup_composite(cg_samples=samples) == {"FINISHED"}
+    setup_s = time.perf_counter() - t0 - bake_s
+    images, seconds = [], []
+    for index in range(1, len(SCORED_FRAMES) + 1):
+        scene.frame_set(index)
+        image, took = bc.render(bpy, scene, out_dir / f"frame_{index:04d}.exr")
+        images.append(image)
+        seconds.append(took)
+    return images, bake_s, setup_s, seconds
+
+
+def run_catcher(bpy, spec, data, samples, out_dir, diffuse_bounces=None):
+    """The skilled artist's shadow catcher (tests/shot_catcher.py), composited as Blender's
+    manual does; the composite's arithmetic is timed with the frame."""
+    scene, cg, phantoms = build(bpy, spec)
+    t0 = time.perf_counter()
+    shot_catcher.setup_catcher(scene, phantoms, samples)
+    if diffuse_bounces is not None:
+        scene.cycles.diffuse_bounces = diffuse_bounces
+    shot_catcher.guess_albedos(bpy, scene, phantoms, cg, data["plate"][0],
+                               lambda s: render_passes(bpy, s, out_dir / "match.exr", "Object Index"))
+    setup_s = time.perf_counter() - t0
+    images, seconds = [], []
+    for index in range(1, len(SCORED_FRAMES) + 1):
+        scene.frame_set(index)
+        t1 = time.perf_counter()
+        combined, catcher = render_passes(bpy, scene, out_dir / f"frame_{index:04d}.exr", "Shadow Catcher")
+        images.append(shot_catcher.composite(combined, catcher, data["plate"][index - 1]))
+        seconds.append(time.perf_counter() - t1)
+    return images, 0.0, setup_s, seconds
+
+
+def render_passes(bpy, scene, path, second):
+    """Render ``scene`` to a multilayer EXR; (Combined RGBA, the ``second`` pass)."""
+    settings = scene.render.image_settings
+    for attribute, value in compat().multilayer_exr_format():
+        setattr(settings, attribute, value)
+    settings.color_depth = "32"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    combined = read_exr(path, "RGBA", layer="Combined")
+    if second == "Object Index":        # one channel, X, which read_exr does not take alone
+        import OpenEXR
+
+        parts = OpenEXR.File(str(path), separate_channels=True).parts
+        return combined, next(c.pixels for part in parts for n, c in part.channels.items()
+                              if n.endswith("Object Index.X"))[..., None]
+    return combined, read_exr(path, layer=second)
+
+
+def run_route(bpy, key, spec, data, samples, out_dir):
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if key == "platelight":
+        return run_platelight(bpy, spec, data, samples, out_dir)
+    if key == "paper":
+        return run_platelight(bpy, spec, data, samples, out_dir, paper=True)
+    return run_catcher(bpy, spec, data, samples, out_dir, diffuse_bounces=3 if key == "catcher_3" else None)
+
+
+# ------------------------------------------------------------------ the run
+
+def main(out_dir: pathlib.Path) -> None:
+    bpy = conftest._import_bpy_with_extension()
+    if bc.DEVICE == "GPU" and bc.use_gpu(bpy) is None:
+        raise SystemExit("PLATELIGHT_BENCH_DEVICE=GPU: Cycles finds no GPU on this machine.")
+    header = sp.run_header(support.REPO, bpy.app.version_string)
+    import importlib
+
+    # built once per machine and add-on version: a user's shot does not pay it
+    importlib.import_module(f"{support.EXT_MODULE}.node_groups.probe_maps").prepare_templates()
+    only = os.environ.get("PLATELIGHT_BENCH_SCENES")
+    keys = os.environ.get("PLATELIGHT_BENCH_ROUTES")
+    routes = {k: v for k, v in ROUTES.items() if not keys or k in keys.split(",")}
+    stem = f"shot_{SIZE}" + ("" if bc.DEVICE == "CPU" else f"_{bc.DEVICE.lower()}")
+    rows = []
+    for name, spec in SCENES.items():
+        if only and name not in only.split(";"):
+            continue
+        data = truth_set(bpy, name, spec)
+        masks = masks_of(data)
+        peak = sp.peak_of(data["truth"])
+        ceiling = [sp.truth_ceiling(*data["halves"], m, peak) for m in masks]
+        plan = {(key, samples): [] for key, (_, _, sample_counts) in routes.items() for samples in sample_counts}
+        scores = {}
+        for repeat, (key, samples) in sp.interleaved(plan, REPEATS):
+            folder = CACHE / SIZE / slug(name) / f"{key}_{samples}"
+            images, bake_s, setup_s, seconds = run_route(bpy, key, spec, data, samples, folder)
+            warm = float(np.median(seconds[1:]))
+            plan[key, samples].append((bake_s, setup_s, seconds[0], warm))
+            if repeat == 0:
+                scores[key, samples] = [sp.pooled_psnr(images, data["truth"], m, peak) for m in masks]
+            print(f"{name} | {key} {samples} | repeat {repeat + 1}: bake {bake_s:.1f} setup {setup_s:.1f} "
+                  f"first {seconds[0]:.1f} warm {warm:.1f} | dB {scores[key, samples]}", flush=True)
+        for (key, samples), timings in plan.items():
+            per_frame = [sp.per_frame_seconds(*t, SHOT_FRAMES) for t in timings]
+            median, spread = sp.median_and_spread(per_frame)
+            bake, setup, first, warm = (float(np.median(column)) for column in zip(*timings))
+            rows.append(dict(
+                scene=name, route=routes[key][0], key=key, samples=samples, repeats=len(timings),
+                per_frame_s=median, per_frame_spread=spread, per_frame_all=per_frame,
+                bake_s=bake, setup_s=setup, first_s=first, warm_s=warm,
+                psnr_object=scores[key, samples][0], psnr_shadow=scores[key, samples][1],
+                psnr_frame=scores[key, samples][2], truth_psnr_object=ceiling[0],
+                truth_psnr_shadow=ceiling[1], truth_psnr_frame=ceiling[2],
+                truth_half_spp=TRUTH_HALF_SPP, size=SIZE, object_px=int(sum(m.sum() for m in masks[0])),
+                shadow_px=int(sum(m.sum() for m in masks[1])), load=os.getloadavg()[0], **header))
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / f"{stem}_rows.json").write_text(json.dumps(rows, indent=1))
+        write_report(out_dir, stem, rows, header)       # after each scene: a stopped run says what it has
+
+
+# ------------------------------------------------------------------ the report
+
+def comparison(rows, scene, key, score):
+    """Against the reference on one score: its converged PSNR and time, our fastest time reaching
+    it (the speed-up), and our best row's gain at equal time."""
+    ref_rows = sorted((r for r in rows if r["scene"] == scene and r["key"] == REFERENCE), key=lambda r: r["samples"])
+    ours = sorted((r for r in rows if r["scene"] == scene and r["key"] == key), key=lambda r: r["samples"])
+    if not ref_rows or not ours:
+        return None
+    reference = [(r["per_frame_s"], r[score]) for r in ref_rows]
+    best, ref_s, converged = sp.reference_convergence(reference)
+    reaching = [r for r in ours if r[score] >= best]
+    gains = [g for g in (sp.gain_at_equal_time((r["per_frame_s"], r[score]), reference) for r in ours)
+             if g is not None]
+    return dict(converged_psnr=best, converged_s=ref_s, converged=converged,
+                best_ours=max(r[score] for r in ours),
+                speedup=ref_s / min(r["per_frame_s"] for r in reaching) if reaching else None,
+                gain=max(gains) if gains else None, ceiling=ours[0]["truth_" + score])
+
+
+def write_report(out_dir, stem, rows, header):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    width, height = SIZE.split("x")
+    lines = [f"# Shot benchmark against Cycles' shadow catcher at {width}×{height}", "",
+             " ".join(__doc__.split("\n\n")[1].split()), "",
+             f"**This run.** Commit `{header['commit']}`, run `{header['run']}`, {header['date']}, "
+             f"Blender {header['blender']}, {header['cpu']} ({header['cores']} cores), Cycles on the "
+             f"{bc.DEVICE}; load average {header['load_at_start']:.1f} at the start, "
+             f"{rows[-1]['load']:.1f} at the last row. Every row below was timed in this run, "
+             f"{REPEATS} times each, interleaved. Truth: 2 × {TRUTH_HALF_SPP} spp, no denoiser, Filter Glossy 0. "
+             "Produced by `tests/bench/bench_shot.py`; nothing here is written by hand.", "",
+             "Scenes: " + "; ".join(f"*{n}*: {s.hdri} environment, {s.floor} floor, {s.material} sphere"
+                                    + (", a red phantom box" if s.box else "")
+                                    + (f", plate noise {s.noise:g}" if s.noise else "")
+                                    for n, s in SCENES.items() if any(r["scene"] == n for r in rows)) + ".", "",
+             "Per frame = (bake + setup + first + 23 × warm) / 24, the median of the repeats; *spread* = "
+             "(slowest − fastest) / median. PSNR in dB over the object, its shadow and the frame, pooled "
+             "over the three scored frames; *ceiling*: the truth's own noise (its two halves), beyond "
+             "which no score can be told apart.", "",
+             "| scene | route | spp | per frame (s) | spread | bake | setup | first | warm | object | shadow | frame |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['route']} | {r['samples']} | {r['per_frame_s']:.2f} | "
+                     f"{100 * r['per_frame_spread']:.0f} % | {r['bake_s']:.1f} | {r['setup_s']:.1f} | "
+                     f"{r['first_s']:.1f} | {r['warm_s']:.1f} | {r['psnr_object']:.2f} | "
+                     f"{r['psnr_shadow']:.2f} | {r['psnr_frame']:.2f} |")
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    lines += ["", "| scene | truth ceiling object | shadow | frame | object px | shadow px |",
+              "|---|---:|---:|---:|---:|---:|"]
+    for scene in scenes:
+        r = next(r for r in rows if r["scene"] == scene)
+        lines.append(f"| {scene} | {r['truth_psnr_object']:.1f} | {r['truth_psnr_shadow']:.1f} | "
+                     f"{r['truth_psnr_frame']:.1f} | {r['object_px']} | {r['shadow_px']} |")
+    lines += ["", "## Against the catcher", "",
+              "Per scene and route, on each score: the catcher's converged PSNR (its best; *not converged* "
+              "where its last step in samples still gained 0.3 dB or more) and the time it first gets "
+              "within 0.3 dB of it; the route's best PSNR; the speed-up where the route reaches the "
+              "catcher's converged PSNR (its fastest such row), else *not reached*; the most dB the "
+              "route gains at equal time within the catcher's measured times. A PSNR within 1 dB of "
+              "the truth's ceiling is marked *(ceiling)*: there no route can be told better.", "",
+              "| scene | route | score | catcher converged | at s/frame | route best | speed-up | gain at equal time |",
+              "|---|---|---|---:|---:|---:|---:|---:|"]
+    mark = lambda p, c: f"{p:.2f}" + (" (ceiling)" if sp.at_ceiling(p, c) else "")  # noqa: E731
+    for scene in scenes:
+        for key in dict.fromkeys(r["key"] for r in rows if r["scene"] == scene):
+            if key == REFERENCE:
+                continue
+            for score in ("psnr_object", "psnr_shadow"):
+                c = comparison(rows, scene, key, score)
+                if c is None:
+                    continue
+                label = next(r["route"] for r in rows if r["key"] == key)
+                lines.append(
+                    f"| {scene} | {label} | {score[5:]} | {mark(c['converged_psnr'], c['ceiling'])}"
+                    f"{'' if c['converged'] else ' (not converged)'} | {c['converged_s']:.2f} | "
+                    f"{mark(c['best_ours'], c['ceiling'])} | "
+                    + (f"{c['speedup']:.2f}×" if c["speedup"] is not None else "not reached") + " | "
+                    + (f"{c['gain']:+.2f}" if c["gain"] is not None else "outside the catcher's times") + " |")
+    (out_dir / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    fig, axes = plt.subplots(len(scenes), 2, figsize=(12, 3.6 * len(scenes)), squeeze=False)
+    for row_axes, scene in zip(axes, scenes):
+        for ax, score in zip(row_axes, ("psnr_object", "psnr_shadow")):
+            for key in dict.fromkeys(r["key"] for r in rows):
+                pts = sorted((r["per_frame_s"], r[score], r["per_frame_spread"]) for r in rows
+                             if r["scene"] == scene and r["key"] == key)
+                if pts:
+                    xs, ys, spread = zip(*pts)
+                    ax.errorbar(xs, ys, xerr=[np.array(xs) * np.array(spread) / 2] * 2, marker="o",
+                                label=next(r["route"] for r in rows if r["key"] == key), capsize=2)
+            ceiling = next(r["truth_" + score] for r in rows if r["scene"] == scene)
+            ax.axhline(ceiling, color="grey", linestyle="--", label="truth's ceiling")
+            ax.set_xscale("log")
+            ax.set_xlabel("seconds per frame of the 24-frame shot")
+            ax.set_ylabel("PSNR (dB)")
+            ax.set_title(f"{scene}: {score[5:]}", fontsize=9)
+            ax.grid(True, alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / f"{stem}.png", dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    main(support.REPO / "docs" / "bench")
