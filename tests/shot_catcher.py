@@ -54,29 +54,37 @@ def guess_albedos(bpy, scene, phantoms, cg, plate, render):
     keep their guessed roughness. ``render(scene)`` -> (RGBA image, object-index image)."""
     import cv2
 
-    keep = (scene.render.resolution_percentage, scene.cycles.samples, scene.view_layers[0].use_pass_object_index)
+    keep = (scene.render.resolution_percentage, scene.cycles.samples, scene.view_layers[0].use_pass_object_index,
+            scene.render.film_transparent)
     hidden = [ob.hide_render for ob in cg]
+    catching = [ob.is_shadow_catcher for ob in phantoms]
     for ob in cg:
         ob.hide_render = True
+    for ob in phantoms:
+        ob.is_shadow_catcher = False          # a catcher renders transparent: nothing to match
     for index, ob in enumerate(phantoms, start=1):
         ob.pass_index = index
         set_colour(ob, (START_ALBEDO,) * 3)
     scene.render.resolution_percentage = int(100 * MATCH_SCALE)
     scene.cycles.samples = MATCH_SAMPLES
     scene.view_layers[0].use_pass_object_index = True
+    scene.render.film_transparent = True
     try:
         image, index_image = render(scene)
     finally:
-        scene.render.resolution_percentage, scene.cycles.samples, scene.view_layers[0].use_pass_object_index = keep
+        (scene.render.resolution_percentage, scene.cycles.samples, scene.view_layers[0].use_pass_object_index,
+         scene.render.film_transparent) = keep
         for ob, was in zip(cg, hidden):
             ob.hide_render = was
+        for ob, was in zip(phantoms, catching):
+            ob.is_shadow_catcher = was
     small_plate = cv2.resize(plate, (image.shape[1], image.shape[0]), interpolation=cv2.INTER_AREA)
     guesses = {}
     for index, ob in enumerate(phantoms, start=1):
         mask = (np.abs(index_image[..., 0] - index) < 0.5) & (image[..., 3] > 0.999)
         mask = cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         if not mask.any():
-            continue
+            raise ValueError(f"the stand-in {ob.name} covers no pixel of the plate: no colour to match")
         ratio = np.median(small_plate[mask], axis=0) / np.maximum(np.median(image[mask, :3], axis=0), 1e-6)
         guesses[ob.name] = tuple(float(v) for v in np.clip(START_ALBEDO * ratio, 0.0, 0.95))
         set_colour(ob, guesses[ob.name])

@@ -93,3 +93,24 @@ def test_the_bakes_after_the_plate_see_the_plate_on_the_phantoms(bpy_clean, tmp_
         assert red_over_green > 2.0, below
     else:
         assert red_over_green < 1.2, below
+
+
+def test_the_catchers_stand_in_colour_is_matched_to_the_plate(bpy_clean, tmp_path):
+    """The artist's guess: the grey stand-in, rendered, scaled to the plate; a floor filmed red
+    under a white sky gets a red colour of about the plate's value (the sky lights it fully)."""
+    import bench_shot
+    import shot_catcher
+
+    bpy = bpy_clean
+    scene, sphere = _scene_over_a_red_plate(bpy, tmp_path)
+    scene.render.engine = "CYCLES"
+    scene.render.resolution_x, scene.render.resolution_y = 128, 96
+    floor = scene.objects["Floor"]
+    shot_catcher.setup_catcher(scene, [floor], samples=8)
+    plate = np.tile(np.float32([0.5, 0.08, 0.08]), (96, 128, 1))
+    guesses = shot_catcher.guess_albedos(
+        bpy, scene, [floor], [sphere], plate,
+        lambda s: bench_shot.render_passes(bpy, s, tmp_path / "match.exr", "Object Index"))
+    r, g, b = guesses["Floor"]
+    assert r == pytest.approx(0.5, rel=0.15) and g == pytest.approx(0.08, rel=0.15), guesses
+    assert floor.is_shadow_catcher and scene.render.film_transparent and scene.cycles.samples == 8
