@@ -16,6 +16,8 @@ SAMPLE = [
     bc.Spec("overcast", 1600, 1200, 0.5, (0.2, 0.1), camera="orthographic", backdrop="bright", exposure=1),
     bc.Spec("night_street", 1000, 1000, 0.95, camera="perspective", backdrop="dark", exposure=-1),
     bc.Spec("city", 1600, 1200, 0.2, (-0.5, 0.5), camera="orthographic", backdrop="scene", holder="hand"),
+    # JPEG rings just outside a bright rim on a dark backdrop: the last ripple is not the rim
+    bc.Spec("hard_sun", 1000, 1000, 0.95, camera="perspective", backdrop="dark", jpeg=90),
 ]
 WITHOUT = [bc.Spec("hard_sun", 1600, 900, 0.0, backdrop="clutter"), bc.Spec("lamp_room", 1200, 900, 0.0)]
 

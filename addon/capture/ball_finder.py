@@ -155,6 +155,8 @@ class RimSteps:
     ray: np.ndarray          # (N,) ray index of each step
     rel: np.ndarray          # (N,) position along the ray, relative to the guessed radius
     width: np.ndarray        # (N,) px, width at half the step's peak gradient
+    strength: np.ndarray     # (N,) the step's peak gradient
+    weak: np.ndarray         # (N,) counted only for the calm beyond it (not a strong step)
     usable: np.ndarray       # (RAYS,) rays whose band lies inside the photo
     seen: np.ndarray         # (RAYS,) usable rays whose band is not clipped white
     theta: np.ndarray        # (RAYS,) ray angles
@@ -236,7 +238,7 @@ def rim_steps(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, re
     width = width * spx
     # a weak step only counts while sharp: a ripple on the tail of a blurred edge is not a rim
     keep = ~weak | (width <= max(MAX_RIM_WIDTH_PX, MAX_RIM_WIDTH * r))
-    return RimSteps(ray[keep], pos[keep], width[keep], usable, seen, theta, (cx, cy, rx, ry))
+    return RimSteps(ray[keep], pos[keep], width[keep], b[keep], weak[keep], usable, seen, theta, (cx, cy, rx, ry))
 
 
 def smoothed(linear: np.ndarray) -> np.ndarray:
@@ -288,27 +290,31 @@ def _robust_fit(pts: np.ndarray, angles: np.ndarray, allow_ellipse: bool):
     return fit
 
 
-def _pick(steps: RimSteps, target_rel: np.ndarray, window: float) -> np.ndarray:
-    """Per ray, the index of its outermost step within ``window`` (relative) of ``target_rel``
-    (per step); -1 where there is none. The outermost: a ball's own outline is often weaker
-    than the compressed reflections just inside it, but it is the last step before the
-    background."""
+def _pick(steps: RimSteps, target_rel: np.ndarray, window: float, by: str = "outermost") -> np.ndarray:
+    """Per ray, the index of its outermost (or strongest) step within ``window`` (relative) of
+    ``target_rel`` (per step); -1 where there is none. The outermost: a ball's own outline is
+    often weaker than the compressed reflections just inside it, but it is the last step before
+    the background. The strongest: JPEG rings just outside a high-contrast rim, and the last
+    ripple is then the outermost step."""
     near = np.abs(steps.rel - target_rel) <= window
     best = np.full(RAYS, -1)
     order = np.nonzero(near)[0]
-    order = order[np.argsort(steps.rel[order])]                # ascending: later ones win
+    key = steps.rel if by == "outermost" else steps.strength
+    order = order[np.argsort(key[order])]                     # ascending: later ones win
     best[steps.ray[order]] = order
     return best
 
 
 def refine(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, reach: float,
-           allow_ellipse: bool = True, clip: float | None = None) -> BallFit | None:
+           allow_ellipse: bool = True, clip: float | None = None, strongest: bool = False) -> BallFit | None:
     """Fit the rim near a guess; None when too little of the outline shows a step.
 
     Two starts: the outermost strong step on each ray, and the step nearest the guess (in
     clutter, or where the photo's own frame runs just outside the ball, the outermost step is
-    not the rim); each is refitted twice from the outermost step near its own outline, and
-    the start with the larger rim support wins."""
+    not the rim); with ``strongest``, a third: the strongest step, where the outermost
+    steps are mostly weak ones (JPEG's ripples just outside a high-contrast rim are the
+    outermost steps there; only near a found ball, where clutter cannot pull the fit away). Each is refitted twice from the outermost (the strongest) step
+    near its own outline, and the start with the larger rim support wins."""
     steps = rim_steps(linear, cx, cy, rx, ry, reach, clip=clip)
     if len(steps.ray) < 0.15 * RAYS:
         return None
@@ -317,12 +323,17 @@ def refine(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, reach
     dist = np.abs(steps.rel - 1)
     for i in np.argsort(-dist):                                # nearest last wins
         nearest[steps.ray[i]] = i
-    starts = (_pick(steps, np.ones(len(steps.rel)), reach + 1), nearest)
+    anywhere = np.ones(len(steps.rel))
+    outermost = _pick(steps, anywhere, reach + 1)
+    starts = ((outermost, "outermost"), (nearest, "outermost"))
+    # ripples are weak steps: where the outermost are mostly strong, clutter is what is strong
+    if strongest and steps.weak[outermost[outermost >= 0]].mean() > 0.5:
+        starts += ((_pick(steps, anywhere, reach + 1, by="strongest"), "strongest"),)
     best = {}
     # a circle unless an ellipse fits clearly more of the rim (an occluded part of the outline
     # leaves an ellipse free to stretch)
     for ellipse in ((False, True) if allow_ellipse else (False,)):
-        for chosen in starts:
+        for chosen, by in starts:
             idx = chosen[chosen >= 0]
             fit = _robust_fit(steps.points(idx), angles_all[idx], ellipse)
             for _ in range(2):
@@ -330,7 +341,7 @@ def refine(linear: np.ndarray, cx: float, cy: float, rx: float, ry: float, reach
                     break
                 # where the fitted outline crosses each step's ray, relative to the guess
                 target = _outline_rel(steps, fit)
-                idx = _pick(steps, target, max(0.015, 2.0 / fit[2]))
+                idx = _pick(steps, target, max(0.015, 2.0 / fit[2]), by)
                 idx = idx[idx >= 0]
                 fit = _robust_fit(steps.points(idx), angles_all[idx], ellipse)
             scored = None if fit is None else _score(steps, fit)
@@ -419,7 +430,7 @@ def find_ball(image: np.ndarray) -> BallFit:
     for f in _distinct(coarse)[:4]:
         cx, cy = (f.cx + 0.5) * shrink - 0.5, (f.cy + 0.5) * shrink - 0.5
         fine = refine(full, cx, cy, f.rx * shrink, f.ry * shrink, reach=max(0.02, 3.0 / f.radius),  # 3 px of the copy
-                      clip=clip)
+                      clip=clip, strongest=True)
         if fine is not None:
             fits.append(fine)
     fits = _distinct(fits)
