@@ -407,7 +407,7 @@ def write_report(out_dir, stem, rows, header):
     width, height = SIZE.split("x")
     lines = [f"# Shot benchmark against Cycles' shadow catcher at {width}×{height}", "",
              " ".join(__doc__.split("\n\n")[1].split()), "",
-             f"**This run.** Commit `{header['commit']}`, run `{header['run']}`, {header['date']}, "
+             f"**This run.** Commit `{header['commit']}`, run `{header['run']}` (its date is in the rows file), "
              f"Blender {header['blender']}, {header['cpu']} ({header['cores']} cores), Cycles on the "
              f"{bc.DEVICE}; load average {header['load_at_start']:.1f} at the start, "
              f"{rows[-1]['load']:.1f} at the last row. Every row below was timed in this run, "
