@@ -391,19 +391,20 @@ def shot_camera(frame, box):
     return ((c * x - s * y, s * x + c * y, z), target, lens)
 
 
-def key_shot_camera(scene, box):
-    """Key the camera at scene frames 1, 2, ... to the shot frames RENDER_FRAMES."""
+def key_shot_camera(scene, box, frames=None):
+    """Key the camera at scene frames 1, 2, ... to the shot frames ``frames`` (RENDER_FRAMES)."""
+    frames = frames or RENDER_FRAMES
     from mathutils import Vector
 
     cam = scene.camera
-    for index, frame in enumerate(RENDER_FRAMES, start=1):
+    for index, frame in enumerate(frames, start=1):
         location, target, lens = shot_camera(frame, box)
         cam.location = location
         cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
         cam.data.lens = lens
         cam.keyframe_insert("location", frame=index)
         cam.keyframe_insert("rotation_euler", frame=index)
-    scene.frame_start, scene.frame_end = 1, len(RENDER_FRAMES)
+    scene.frame_start, scene.frame_end = 1, len(frames)
     scene.frame_set(1)
 
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import pathlib
 import sys
@@ -43,9 +42,8 @@ from support import compat  # noqa: E402
 SIZE = os.environ.get("PLATELIGHT_BENCH_SIZE", "960x540")
 REPEATS = int(os.environ.get("PLATELIGHT_BENCH_REPEATS", 3))
 TRUTH_HALF_SPP = int(os.environ.get("PLATELIGHT_BENCH_TRUTH_HALF_SPP", 1024))
-SHOT_FRAMES = 24
+SHOT_FRAMES = bc.SHOT_FRAMES
 SCORED_FRAMES = (1, 12, 24)
-ORBIT_DEGREES = 20.0
 CACHE = support.REPO / "bench_out" / "shot"
 
 
@@ -147,39 +145,16 @@ def build(bpy, spec: Scene, frame: int = 1):
     width, height = (int(v) for v in SIZE.split("x"))
     bc.W, bc.H = width, height
     scene, floor, sphere = bc.build(bpy, environment_path(spec.hdri), bc.MATERIALS[spec.material],
-                                    camera=shot_camera(1, spec.box), box=bc.BOX if spec.box else None)
+                                    camera=bc.shot_camera(1, spec.box), box=bc.BOX if spec.box else None)
     scene.cycles.seed = 0
     floor.data.materials[0] = floor_material(bpy, spec.floor)
     floor.active_material = floor.data.materials[0]
     floor.data.uv_layers.new()
     phantoms = [floor] + ([scene.objects["Box"]] if spec.box else [])
-    key_camera(scene, spec.box)
+    bc.key_shot_camera(scene, spec.box, SCORED_FRAMES)
     scene.frame_set(frame)
     bc.set_device(scene)
     return scene, [sphere], phantoms
-
-
-def shot_camera(frame: int, box: bool):
-    location, target, lens = bc.BOX_VIEW if box else bc.CAMERA
-    angle = math.radians(ORBIT_DEGREES) * (frame - 1) / (SHOT_FRAMES - 1)
-    c, s = math.cos(angle), math.sin(angle)
-    x, y, z = location
-    return (c * x - s * y, s * x + c * y, z), target, lens
-
-
-def key_camera(scene, box: bool):
-    from mathutils import Vector
-
-    cam = scene.camera
-    for index, frame in enumerate(SCORED_FRAMES, start=1):
-        location, target, lens = shot_camera(frame, box)
-        cam.location = location
-        cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
-        cam.data.lens = lens
-        cam.keyframe_insert("location", frame=index)
-        cam.keyframe_insert("rotation_euler", frame=index)
-        cam.data.keyframe_insert("lens", frame=index)
-    scene.frame_start, scene.frame_end = 1, len(SCORED_FRAMES)
 
 
 # ------------------------------------------------------------------ truths, plates, masks
