@@ -18,6 +18,7 @@ What differs (README, "Supported Blender versions"):
   there, a file format on 4.5); a File Output node's still-frame files carry the frame number on
   4.5 only.
 - EEVEE's engine identifier: BLENDER_EEVEE_NEXT on 4.5, BLENDER_EEVEE on 5.x.
+- A multilayer EXR names the Object Index pass "IndexOB" on 4.5, "Object Index" on 5.x.
 - 4.5's bpy can deadlock at process exit (exit_process).
 """
 from __future__ import annotations
@@ -36,6 +37,8 @@ EEVEE = "BLENDER_EEVEE_NEXT" if BLENDER_4 else "BLENDER_EEVEE"
 # EEVEE honours a view layer's material override from 5.0 on; 4.5's EEVEE renders the objects'
 # own materials (measured: its baked-shadow layer showed the lit phantoms, not the ratio).
 EEVEE_MATERIAL_OVERRIDE = not BLENDER_4
+# The Object Index pass's layer in a multilayer EXR (its one channel is X).
+OBJECT_INDEX_LAYER = "IndexOB" if BLENDER_4 else "Object Index"
 
 
 # ---- materials and worlds

@@ -22,8 +22,8 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB", layer: str | None =
     the layer whose last name is this (a multilayer render's pass, "Shadow Catcher"), else the
     picture's.
 
-    A grey (Y-only) image is broadcast to RGB, a vector pass's X, Y, Z read as R, G, B; a missing
-    alpha reads as 1."""
+    A grey (Y-only) image and a one-value pass (X only: Object Index) are broadcast to RGB, a
+    vector pass's X, Y, Z read as R, G, B; a missing alpha reads as 1."""
     import OpenEXR
 
     path = os.fspath(path)
@@ -44,7 +44,7 @@ def read_exr(path: str | os.PathLike, channels: str = "RGB", layer: str | None =
     elif all(k in planes for k in "XYZ"):          # a vector pass (Denoising Normal)
         rgb = [planes["X"], planes["Y"], planes["Z"]]
     else:
-        rgb = [planes["Y"]] * 3
+        rgb = [planes["Y"] if "Y" in planes else planes["X"]] * 3
     if channels == "RGBA":
         alpha = planes.get("A")
         rgb.append(alpha if alpha is not None else np.ones_like(rgb[0]))
@@ -72,7 +72,8 @@ def _choose_layer(parts: list[dict], wanted: str | None = None) -> dict | None:
             channel = channel.upper()
             if channel in ("R", "G", "B", "A", "X", "Y", "Z"):
                 layers.setdefault(layer, {}).setdefault(channel, pixels)
-    usable = {k: v for k, v in layers.items() if all(c in v for c in "RGB") or "Y" in v}
+    usable = {k: v for k, v in layers.items()
+              if all(c in v for c in "RGB") or "Y" in v or set(v) == {"X"}}
     if wanted is not None:
         usable = {k: v for k, v in usable.items() if k.rpartition(".")[2].lower() == wanted.lower()}
     if not usable:

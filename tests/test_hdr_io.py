@@ -150,6 +150,12 @@ def test_exr_of_any_channel_layout(tmp_path):
     OpenEXR.File({"type": OpenEXR.scanlineimage}, {"Z": planes["R"]}).write(str(tmp_path / "depth.exr"))
     with pytest.raises(PlateLightError, match="no R, G, B or Y channels"):
         read_probe(tmp_path / "depth.exr")
+    # a one-value pass (Blender's Object Index: X alone) is read by its layer's name, broadcast
+    index = dict(layered, **{"ViewLayer.IndexOB.X": planes["G"]})
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, index).write(str(tmp_path / "index.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "index.exr", layer="IndexOB"),
+                                  np.repeat(rgb[..., 1:2], 3, axis=-1))
+    np.testing.assert_array_equal(read_exr(tmp_path / "index.exr"), rgb)
 
 
 def test_real_hdr_probe_through_maps_lights_and_probe(hdri, tmp_path):

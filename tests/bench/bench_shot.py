@@ -262,7 +262,7 @@ def run_catcher(bpy, spec, data, samples, out_dir, diffuse_bounces=None):
     if diffuse_bounces is not None:
         scene.cycles.diffuse_bounces = diffuse_bounces
     shot_catcher.guess_albedos(bpy, scene, phantoms, cg, data["plate"][0],
-                               lambda s: render_passes(bpy, s, out_dir / "match.exr", "Object Index"))
+                               lambda s: render_passes(bpy, s, out_dir / "match.exr", compat().OBJECT_INDEX_LAYER))
     setup_s = time.perf_counter() - t0
     images, seconds = [], []
     for index in range(1, len(SCORED_FRAMES) + 1):
@@ -282,14 +282,7 @@ def render_passes(bpy, scene, path, second):
     settings.color_depth = "32"
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
-    combined = read_exr(path, "RGBA", layer="Combined")
-    if second == "Object Index":        # one channel, X, which read_exr does not take alone
-        import OpenEXR
-
-        parts = OpenEXR.File(str(path), separate_channels=True).parts
-        return combined, next(c.pixels for part in parts for n, c in part.channels.items()
-                              if n.endswith("Object Index.X"))[..., None]
-    return combined, read_exr(path, layer=second)
+    return read_exr(path, "RGBA", layer="Combined"), read_exr(path, layer=second)
 
 
 def run_route(bpy, key, spec, data, samples, out_dir):

@@ -110,7 +110,8 @@ def test_the_catchers_stand_in_colour_is_matched_to_the_plate(bpy_clean, tmp_pat
     plate = np.tile(np.float32([0.5, 0.08, 0.08]), (96, 128, 1))
     guesses = shot_catcher.guess_albedos(
         bpy, scene, [floor], [sphere], plate,
-        lambda s: bench_shot.render_passes(bpy, s, tmp_path / "match.exr", "Object Index"))
+        lambda s: bench_shot.render_passes(bpy, s, tmp_path / "match.exr",
+                                               compat().OBJECT_INDEX_LAYER))
     r, g, b = guesses["Floor"]
     assert r == pytest.approx(0.5, rel=0.15) and g == pytest.approx(0.08, rel=0.15), guesses
     assert floor.is_shadow_catcher and scene.render.film_transparent and scene.cycles.samples == 8
