@@ -229,8 +229,9 @@ def slug(name: str) -> str:
 
 # ------------------------------------------------------------------ the routes
 
-def run_platelight(bpy, spec, data, samples, out_dir, paper=False):
-    """The README's order: plate, Apply SBRDF, Bake Probes, Bake Shadows, Set Up Composite."""
+def run_platelight(bpy, spec, data, samples, out_dir, paper=False, shadow_bake=None):
+    """The README's order: plate, Apply SBRDF, Bake Probes, Bake Shadows, Set Up Composite
+    (``shadow_bake``: Bake Shadows' settings, else its defaults)."""
     scene, cg, phantoms = build(bpy, spec)
     scene.platelight.property_unset("phantom_surface")     # a user's scene: the plate on the phantoms
     for ob in phantoms:
@@ -240,7 +241,7 @@ def run_platelight(bpy, spec, data, samples, out_dir, paper=False):
     bake_s = bc.sbrdf_sphere(bpy, scene, cg[0], out_dir / "frame", paper=paper,
                              route="sbrdf_paper" if paper else "sbrdf")
     t1 = time.perf_counter()
-    assert bpy.ops.platelight.bake_shadows() == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(**(shadow_bake or {})) == {"FINISHED"}
     bake_s += time.perf_counter() - t1
     assert bpy.ops.platelight.setup_composite(cg_samples=samples) == {"FINISHED"}
     setup_s = time.perf_counter() - t0 - bake_s
