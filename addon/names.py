@@ -83,6 +83,8 @@ LENS_KEY = "platelight_lens"   # on the scene: the calibrated lens {fx, fy, cx, 
 KEPT_MATERIALS_KEY = "platelight_kept_materials"   # on a phantom: object-linked materials to give back
 # on a plate-surfaced phantom: its albedo (R, G, B, 1) where the plate's camera did not see it
 HIDDEN_ALBEDO_KEY = "platelight_hidden_albedo"
+# on a plate-surfaced phantom: the mean albedo (R, G, B) of what the plate's camera saw of it
+MEAN_ALBEDO_KEY = "platelight_mean_albedo"
 # on a view layer: 1 where the phantoms show the CG's rays the filmed plate times the baked shadows
 FILMED_PHANTOMS_KEY = "platelight_filmed_phantoms"
 # on a view layer: 1 where it holds the phantoms out (the camera sees the plate through them there)

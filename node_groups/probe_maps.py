@@ -33,7 +33,7 @@ from . import template_cache
 from .sbrdf import LOOKUP_SOCKETS
 
 FOLDER_KEY = "platelight_probe_dir"
-VERSION = 11                         # a group built by another version is rebuilt
+VERSION = 12                         # a group built by another version is rebuilt
 DISTANCE_BEHIND = behind_name(DISTANCE_NAME)   # the nodes reading the layer behind's distance map
 BEHIND_FILES = {behind_name(name): name for name in BEHIND_MAPS}
 BEHIND_KEY = "platelight_behind"     # on the group: built with the layer behind's look-ups
@@ -249,7 +249,7 @@ def bind_images(tree):
     if view_switch is not None:
         view_switch.outputs[0].default_value = 1.0 if ladder else 0.0
     _bind_parallax(tree, record)
-    _bind_grid(tree, record, moving=kind == "sequence" and _grid_moves(path))
+    _bind_grid(tree, record, sun, moving=kind == "sequence" and _grid_moves(path))
     return tree
 
 
@@ -364,9 +364,10 @@ def _grid_moves(path) -> bool:
     return len(boxes) > 1
 
 
-def _bind_grid(tree, record, moving=False):
+def _bind_grid(tree, record, sun, moving=False):
     """The irradiance grid's box and shape (from the bake record) and its switch: on when the
-    scene asks for it (scene.platelight.probe_diffuse_parallax) and the folder has a grid. The
+    scene asks for it (scene.platelight.probe_diffuse_parallax), the folder has a grid and the
+    grid lacks the sun exactly when the group adds it (``sun``; as the ladder's rungs). The
     group holds one box (the first frame's), so an object that moves over a baked sequence
     (``moving``) reads the paper's diffuse map of each frame instead: a box left behind would
     clamp every shading point to its far face."""
@@ -376,7 +377,7 @@ def _bind_grid(tree, record, moving=False):
     switch, lo_node, scale_node, points_node, height_node = nodes
     grid = record.get(irradiance_grid.RECORD_KEY)
     on = _scene_setting("probe_diffuse_parallax") and _has_baked(tree, irradiance_grid.GRID_NAME) \
-        and isinstance(grid, dict) and not moving
+        and isinstance(grid, dict) and not moving and bool(grid.get("sunless")) == (sun is not None)
     if on:
         for axis, low, high in zip("XYZ", grid["lo"], grid["hi"]):
             lo_node.inputs[axis].default_value = float(low)
@@ -664,13 +665,28 @@ def _irradiance_grid(g, direction):
     return total
 
 
-def _sun_highlight(g, inp):
-    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V)) (1 + b (1 - A) / A) of the group's sun
-    (its irradiance 0 when it has none) for the SBRDF's Lobe View, Lobe Tangent and Lobe Alphas,
-    b = sun_lobe.given_back(Specular Weight)."""
-    direction = _named_vector(g, names.SUN_DIRECTION_NODE)
-    color = _named_vector(g, names.SUN_COLOR_NODE)
-    angle = _named_value(g, names.SUN_ANGLE_NODE, 0.0)
+def _sun_nodes(g):
+    """(direction, irradiance, angular diameter): the group's sun, one node each, which the
+    binding finds by name (_bind_sun; its irradiance 0 when it has none)."""
+    return (_named_vector(g, names.SUN_DIRECTION_NODE), _named_vector(g, names.SUN_COLOR_NODE),
+            _named_value(g, names.SUN_ANGLE_NODE, 0.0))
+
+
+def _sun_lambert(g, sun, normal):
+    """sun_lobe.lambert in nodes: the sun on a diffuse surface of albedo 1, its horizon softened
+    over the disc."""
+    direction, color, angle = sun
+    x = g.vmath("DOT_PRODUCT", normal, direction)
+    s = g.math("MAXIMUM", g.math("SINE", g.math("MULTIPLY", angle, 0.5)), sun_lobe.HORIZON_MIN)
+    q = g.math("DIVIDE", g.math("ADD", x, s), g.math("MULTIPLY", s, 2.0), clamp=True)
+    soft = g.math("MAXIMUM", g.math("MULTIPLY", s, g.math("MULTIPLY", q, q)), x)
+    return g.vmath("SCALE", color, scale=g.math("DIVIDE", soft, math.pi))
+
+
+def _sun_highlight(g, sun, inp):
+    """sun_lobe.highlight in nodes: E D(h) G2 / (4 (N.V)) (1 + b (1 - A) / A) of the sun for the
+    SBRDF's Lobe View, Lobe Tangent and Lobe Alphas, b = sun_lobe.given_back(Specular Weight)."""
+    direction, color, angle = sun
     n, view, tangent = inp["Diffuse Direction"], inp["Lobe View"], inp["Lobe Tangent"]
     bitangent = g.vmath("CROSS_PRODUCT", n, tangent)
     split = g.node("ShaderNodeSeparateXYZ")
@@ -759,9 +775,13 @@ def _build(tree, behind=False):
             total = term if total is None else g.vmath("ADD", total, term)
         return total
 
+    sun = _sun_nodes(g)
     switch = _named_value(g, names.DIFFUSE_PARALLAX_NODE, 0.0)
-    irradiance = g.mix("VECTOR", switch, env("diffuse", inp["Diffuse Direction"]),
-                       _irradiance_grid(g, inp["Diffuse Direction"]))
+    # the maps without the sun, and the sun's kink at the terminator exact, not blurred between
+    # their texels
+    sunless = g.mix("VECTOR", switch, env(sun_lobe.sunless_name("diffuse"), inp["Diffuse Direction"]),
+                    _irradiance_grid(g, inp["Diffuse Direction"]))
+    irradiance = g.vmath("ADD", sunless, _sun_lambert(g, sun, inp["Diffuse Direction"]))
     diffuse = g.vmath("MULTIPLY", inp["Diffuse Weight"], irradiance)
     specular_direction, footprint, behind_weight = _parallax(g, inp["Specular Direction"], behind)
     # The maps are blurred as seen from the centre; a lobe meeting a surface near the shading
@@ -786,7 +806,7 @@ def _build(tree, behind=False):
     # The sun the sunless maps lack, through the lobe, for their share (view_lobe.sun_share).
     rungs = [specular_weights[view_lobe.LADDER.index(name)] for name in view_lobe.RUNGS]
     sun_share = g.math("ADD", specular_weights[0], g.math("ADD", g.math("ADD", rungs[0], rungs[1]), rungs[2]))
-    streak = g.vmath("ADD", streak, g.vmath("SCALE", _sun_highlight(g, inp), scale=sun_share))
+    streak = g.vmath("ADD", streak, g.vmath("SCALE", _sun_highlight(g, sun, inp), scale=sun_share))
     specular = g.vmath("MULTIPLY", inp["Specular Weight"], streak)
     refraction_weights = tent_weights(g, inp["Map Glossiness"])
     channels = []

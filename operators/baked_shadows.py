@@ -77,13 +77,28 @@ def panorama_centre(cg):
     return np.array([(low[0] + high[0]) / 2, (low[1] + high[1]) / 2, high[2] + radius])
 
 
-def _matte_grey():
-    """A plain 50 % grey diffuse material for the phantoms during the bake (removed after)."""
-    material = compat.new_material(names.BAKED_SHADOW_MATERIAL + " Grey")
+# A phantom's matte albedo in the bake where the plate gives none (its own material)
+DEFAULT_MATTE_ALBEDO = 0.5
+
+
+def matte_albedo(ob) -> tuple:
+    """The albedo a phantom is baked with: the plate's estimate of the real surface's (its mean
+    over what the camera saw of it, operators/phantoms.py), else DEFAULT_MATTE_ALBEDO. It scales
+    the light the CG sends back onto the phantoms (floor to CG to floor), so the ratio in a shadow
+    depends on it: a 50 % grey under a sunlit 35 % floor made the shadow 4 % too bright."""
+    albedo = ob.get(names.MEAN_ALBEDO_KEY)
+    if albedo is None:
+        return (DEFAULT_MATTE_ALBEDO,) * 3
+    return tuple(round(float(c), 3) for c in list(albedo)[:3])
+
+
+def _matte(albedo):
+    """A plain diffuse material of ``albedo`` for the phantoms during the bake (removed after)."""
+    material = compat.new_material(names.BAKED_SHADOW_MATERIAL + " Matte")
     tree = compat.shader_tree(material)
     tree.nodes.clear()
     diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    diffuse.inputs["Color"].default_value = (*albedo, 1.0)
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     tree.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
     return material
@@ -93,7 +108,8 @@ def shadows_hash(scene, height, samples, method, denoiser) -> str:
     """The content hash of what the shadow panorama depends on: the world, every renderable
     object (place, shape, materials, visibility), the bake's settings and Cycles' bounces. A
     phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
-    the ratio, and the plate-albedo material is remade at every composite set-up. The bake hides
+    the ratio but for the light the CG sends back, so each phantom's matte albedo (matte_albedo)
+    stands in for them; the plate-albedo material is remade at every composite set-up. The bake hides
     the CG from its camera, so what Cycles' camera sees of an SBRDF metal (setup_composite's
     Metals) is left out too: switching it must not make a bake stale."""
     describer = Describer(camera_blind=True)
@@ -104,6 +120,7 @@ def shadows_hash(scene, height, samples, method, denoiser) -> str:
             return describer.seen_digest(ob, frame)
         described = describer.seen_object(ob, frame)
         described.pop("materials")
+        described["matte_albedo"] = matte_albedo(ob)
         return content_hash(described)
 
     seen = sorted((ob.name_full, digest(ob)) for ob in scene.objects
@@ -221,18 +238,18 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     layer = scene.view_layers.new(names.SHADOW_BAKE_LAYER)
     renderer = ProbeRenderer(context, state, None, denoise=True, samples=samples, view_layer=layer,
                              catcher_denoiser=denoiser)
-    grey = _matte_grey()
+    mattes = {albedo: _matte(albedo) for albedo in {matte_albedo(ob) for ob in phantoms}}
     try:
         for other in scene.view_layers:
             if other != layer and other.use:
                 state.set(other, "use", False)
         state.set(scene.cycles, "diffuse_bounces", bake_diffuse_bounces(scene.cycles))
-        # Phantoms are rendered plain grey: a matte albedo cancels in the ratio, and a textured
-        # one (the plate's albedo) made the two denoised renders differ by up to 5 % far from any
-        # shadow (the denoiser sees the whole panorama)
+        # Phantoms are rendered matte, one albedo each: it cancels in the ratio but for the
+        # light the CG sends back; a textured one (the plate's albedo map) made the two denoised
+        # renders differ by up to 5 % far from any shadow (the denoiser sees the whole panorama)
         for ob in phantoms:
             for slot in ob.material_slots:
-                state.set(slot, "material", grey)
+                state.set(slot, "material", mattes[matte_albedo(ob)])
         # Only the rows that see a phantom: under a floor's CG about half the panorama
         rows = engine.panorama_rows(centre, [world_box([ob]) for ob in phantoms], height)
         # The CG shadows and lights the phantoms but is not seen; the catchers' paths also go on
@@ -248,7 +265,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     finally:
         errors = state.restore()
         renderer.end()
-        bpy.data.materials.remove(grey)
+        for material in mattes.values():
+            bpy.data.materials.remove(material)
         scene.view_layers.remove(layer)
     ratio = (engine.catcher_ratio(caught, rows) if method == "CATCHER"
              else engine.shadow_ratio(lit_with, lit_without))

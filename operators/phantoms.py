@@ -197,11 +197,12 @@ def _farthest_around(distance):
 def phantom_albedo(scene, view_layer, phantoms, plate, calib):
     """Write the albedo map and the radiance map; returns (albedo path, radiance path,
     world-to-camera 4x4 of the frame they were made at, fallback albedo, each phantom's hidden
-    albedo). ``calib`` = (fx, fy, cx, cy, dist, width, height) of the plate's lens.
+    albedo, each phantom's mean albedo). ``calib`` = (fx, fy, cx, cy, dist, width, height) of the plate's lens.
 
     Where the camera did not see a phantom (behind another, or outside the frame) its albedo is
     unknown: each phantom gets the median albedo of what the camera saw of it (the floor behind a
     red box stays the floor's grey, not the box's red), one it did not see at all the fallback.
+    The mean over the same pixels is the energy it sends back (the shadow bake's matte albedo).
 
     The radiance map is what the camera filmed where it saw a phantom: the plate's RGB, and in A
     the farthest distance from the camera to a phantom around that pixel (0 where it saw none), so
@@ -238,13 +239,14 @@ def phantom_albedo(scene, view_layer, phantoms, plate, calib):
                                     np.concatenate([albedo, seen[..., None].astype(np.float32)], -1))
     phantom_there = distance[..., 3] > 0.5
     whose = np.where(phantom_there, np.rint(distance[..., 1]), 0).astype(np.int64)
-    hidden = []
+    hidden, means = [], []
     for number in range(1, len(phantoms) + 1):
         own = seen & (whose == number)
         hidden.append(np.median(albedo[own], axis=0) if own.any() else fallback)
+        means.append(albedo[own].mean(axis=0) if own.any() else fallback)
     radiance_path = _write_if_changed(os.path.join(folder, "radiance.exr"),
                                       _filmed_radiance(pixels, distance[..., 0], whose, len(phantoms)))
-    return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback, hidden
+    return albedo_path, radiance_path, np.array(scene.camera.matrix_world.inverted()), fallback, hidden, means
 
 
 def phantom_surface(scene, ob):
@@ -278,7 +280,7 @@ def apply_phantom_surfaces(scene, phantoms, view_layer=None):
     if not wanted:
         return 0
     layer = view_layer or bpy.context.view_layer
-    albedo_path, radiance_path, world_to_camera, fallback, hidden = phantom_albedo(
+    albedo_path, radiance_path, world_to_camera, fallback, hidden, means = phantom_albedo(
         scene, layer, wanted, plate, plate_intrinsics(scene, camera))
     albedo = _load_map(names.PHANTOM_ALBEDO_IMAGE, albedo_path, "STRAIGHT")
     # RGB and A are separate facts (the plate, the distance): neither may scale the other
@@ -286,9 +288,10 @@ def apply_phantom_surfaces(scene, phantoms, view_layer=None):
     # the maps are in the render camera's frame: its own pinhole, no lens
     material = build_phantom_plate_material(albedo, radiance, world_to_camera, pinhole_from_camera(scene, camera),
                                             (scene.render.resolution_x, scene.render.resolution_y), fallback)
-    for ob, hidden_albedo in zip(wanted, hidden):
+    for ob, hidden_albedo, mean_albedo in zip(wanted, hidden, means):
         _show_plate(ob, material)
         ob[names.HIDDEN_ALBEDO_KEY] = [*(float(c) for c in hidden_albedo), 1.0]
+        ob[names.MEAN_ALBEDO_KEY] = [float(c) for c in mean_albedo]
     return len(wanted)
 
 
@@ -328,5 +331,6 @@ def _give_back(ob):
             if name is None:
                 slot.link = "DATA"
     del ob[KEPT_KEY]
-    if names.HIDDEN_ALBEDO_KEY in ob:
-        del ob[names.HIDDEN_ALBEDO_KEY]
+    for key in (names.HIDDEN_ALBEDO_KEY, names.MEAN_ALBEDO_KEY):
+        if key in ob:
+            del ob[key]

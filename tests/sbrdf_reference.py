@@ -105,7 +105,10 @@ def sbrdf(P, view, maps, p, sun=None, sunless=None, rungs=None):
     a = p["alpha"]
     paper = p.get("paper_falloff", 0.0)       # 0: the diffuse layer gets what the specular leaves
     rho_d_layered = paper * rho_d + (1 - paper) * rho_d * (1 - rho_s)
-    lr = a * rho_d_layered * bilinear(maps["diffuse"], N)
+    if sun is None:
+        lr = a * rho_d_layered * bilinear(maps["diffuse"], N)
+    else:       # the sunless diffuse map and the sun's own Lambert term
+        lr = a * rho_d_layered * (bilinear(dict(maps, **(sunless or {}))["diffuse"], N) + sun_lobe.lambert(N, sun))
     spec_dir = _norm(peak)
     # the look-up tilt towards N (its rule is checked against brute force in test_lobe_tilt.py);
     # the paper's model looks up along p

@@ -53,6 +53,47 @@ def test_highlight_is_the_brute_force_ggx_of_the_sun(roughness, amount):
         (np.median(error), error.max())
 
 
+def test_the_sunless_diffuse_map_and_the_suns_lambert_term_are_the_brute_force_irradiance():
+    """Across the terminator the diffuse map, bilinear between texels 11 degrees apart, reads the
+    sun's kink far too bright; its sunless map plus lambert() does not."""
+    from platelight.addon.ibl import equirect
+
+    env, light, sunless = _sky_with_small_sun()
+    full = compute_maps(env, which=["diffuse"]).maps["diffuse"]
+    dark = compute_maps(sunless.astype(np.float32), which=["diffuse"]).maps["diffuse"]
+    across = np.cross(light.direction, [0.0, 0.0, 1.0])
+    across /= np.linalg.norm(across)
+    angle = np.radians(np.arange(0.0, 180.5, 1.5))
+    normals = np.cos(angle)[:, None] * light.direction + np.sin(angle)[:, None] * across
+    h, w = env.shape[:2]
+    directions = equirect.texel_directions(h, w).reshape(-1, 3)
+    solid = np.broadcast_to(equirect.texel_solid_angles(h, w).reshape(h, -1), (h, w)).reshape(-1)
+    want = (np.maximum(normals @ directions.T, 0.0) * solid) @ env.reshape(-1, 3).astype(np.float64) / np.pi
+    u, v = equirect.dir_to_uv(normals)
+    blurred = equirect.sample_bilinear(full, u, v)
+    got = equirect.sample_bilinear(dark, u, v) + sun_lobe.lambert(normals, light)
+    scale = want.max()
+    # measured: the map's worst 3.3 % of the peak (at the terminator, where the light is 5 % of
+    # it), ours 0.06 %; ours' RMS error 1 % of the map's
+    terminator = np.argmin(np.abs(angle - np.pi / 2))
+    assert np.abs(blurred - want).max() > 0.02 * scale and blurred[terminator, 0] > 1.3 * want[terminator, 0]
+    assert np.abs(got - want).max() < 0.005 * scale, np.abs(got - want).max() / scale
+    assert np.sqrt(np.mean((got - want) ** 2)) < 0.05 * np.sqrt(np.mean((blurred - want) ** 2))
+
+
+def test_lambert_is_the_cosine_away_from_the_horizon_and_smooth_across_it():
+    light = lights.DirectionalLight(np.array([0.0, 0.0, 1.0]), np.array([2.0, 1.0, 0.5]), 0.02, True)
+    z = np.linspace(-1, 1, 2001)
+    normals = np.stack([np.sqrt(1 - z * z), np.zeros_like(z), z], -1)
+    out = sun_lobe.lambert(normals, light)
+    s = np.sin(0.01)
+    far = np.abs(z) > s
+    assert np.allclose(out[far], np.maximum(z[far], 0)[:, None] * light.rgb / np.pi)
+    assert np.all(np.diff(out[:, 0]) >= 0) and np.abs(np.diff(out[:, 0], 2)).max() < 1e-3
+    point = lights.DirectionalLight(light.direction, light.rgb, 0.0, True)
+    assert np.allclose(sun_lobe.lambert(normals, point), np.maximum(z, 0)[:, None] * light.rgb / np.pi, atol=1e-6)
+
+
 def test_highlight_is_zero_below_the_horizon_and_finite_for_a_mirror():
     light = lights.DirectionalLight(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 1.0]), 0.0, True)
     n = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])

@@ -8,7 +8,8 @@ grazing view stretches it. So the bake splits the probe (lights.split_sun: the s
 with the sky around it, energy kept) and writes, beside the four contract maps (unchanged), the
 diffuse, glossy1 and glossy2 maps of the probe *without* its sun (``<map>_sunless.exr``) and the
 sun in the bake record. The shader's specular look-ups read the sunless diffuse and glossy maps
-and the mirror map (which keeps the sun), and add the sun through the lobe for their share:
+and the mirror map (which keeps the sun), and add the sun through the lobe for their share; the
+diffuse term reads the sunless diffuse map and adds the sun's Lambert term (lambert):
 
     S = sum_k w_k map_k(d) + (w_glossy1 + w_glossy2 + w_diffuse) E D(h) G2(V, L) / (4 (N.V)) (1 + b (1 - A) / A)
 
@@ -41,10 +42,10 @@ from .equirect import downsample_area
 from .ggx import smith_lambda
 from .maps import MAP_NAMES, MapSettings, compute_maps, map_filename, tent_weights
 
-VERSION = 1                 # in the probe's hash: a bake before the sunless maps is baked again
+VERSION = 2                 # in the probe's hash: a bake before the sunless grid is baked again
 
 # The maps that lose the sun and where they are written; the mirror map keeps it (a mirror shows
-# its disc). A specular lobe reads them all sunless; the diffuse lobe reads the diffuse map with it.
+# its disc). Every lobe reads them sunless and adds the sun itself (highlight, lambert).
 SUNLESS_MAPS = ("diffuse", "glossy1", "glossy2")
 SUNLESS_SUFFIX = "_sunless"
 RECORD_KEY = "sun"          # in the bake record: {"direction", "rgb", "angle"}
@@ -71,6 +72,8 @@ SPLIT_HEIGHT = 512
 # dielectric's, whose rho_s' follows its albedo) and above which F of it (a metal's); around the
 # conversion's own line between them (principled.METAL_THRESHOLD, 0.2).
 METAL_LIKE = (0.1, 0.3)
+# Smallest sin(disc radius) the diffuse horizon is softened over (a point sun: none to speak of).
+HORIZON_MIN = 1e-6
 # Smallest alpha the shader evaluates (D's peak 1 / (pi alpha^2) stays finite in float32).
 MIN_ALPHA = 1e-3
 # A disc of angular diameter theta moves the half vector over a disc of slope radius ~theta / 4,
@@ -219,6 +222,19 @@ def given_back(reflectance) -> np.ndarray:
     mean = np.mean(np.atleast_1d(reflectance), axis=-1, keepdims=reflectance.ndim > 0)
     metal = np.clip((mean - METAL_LIKE[0]) / (METAL_LIKE[1] - METAL_LIKE[0]), 0.0, 1.0)
     return 1.0 - metal * (1.0 - reflectance)
+
+
+def lambert(normal, light: lights.DirectionalLight) -> np.ndarray:
+    """The sun's diffuse light for albedo 1, E max(N.L, 0) / pi, its horizon softened over the
+    disc: within sin(r) of it (r the disc's angular radius) N.L is replaced by
+    sin(r) q^2, q = clamp((N.L + sin r) / (2 sin r), 0, 1), which meets N.L and 0 there in value
+    and slope. The diffuse map cannot carry the sun: bilinear between its texels, 11 degrees
+    apart, it reads the terminator's kink up to 3 % of the sun's peak too bright, many times the
+    light there (tests/test_sun_lobe.py)."""
+    x = np.sum(np.asarray(normal, dtype=np.float64) * light.direction, axis=-1, keepdims=True)
+    s = max(float(np.sin(light.angle / 2)), HORIZON_MIN)
+    q = np.clip((x + s) / (2 * s), 0.0, 1.0)
+    return np.maximum(s * q * q, x) * light.rgb / np.pi
 
 
 def highlight(normal, tangent, view, alpha_t, alpha_b, light: lights.DirectionalLight,

@@ -325,7 +325,7 @@ class ProbeBake:
             result = compute_maps(env, settings, which=maps)
             self.warnings.extend(f"{ob.name}: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=key_frame)
-            sun = self._bake_lookup_maps(folder, env, settings, maps, key_frame)
+            sun, sunless_env = self._bake_lookup_maps(folder, env, settings, maps, key_frame)
             grid = {}
             if wants_distance:
                 self.warnings.extend(f"{ob.name}: {w}" for w in distance_render.write_probe_distance(
@@ -334,7 +334,8 @@ class ProbeBake:
                 distance_maps.remove_distance(folder, key_frame)
             self._write_behind(folder, key_frame, settings)
             if wants_grid:
-                grid = self._write_irradiance_grid(env, points, origin, settings, folder, key_frame)
+                grid = self._write_irradiance_grid(env if sunless_env is None else sunless_env, points,
+                                                   origin, settings, folder, key_frame, sunless_env is not None)
             else:
                 irradiance_grid.remove_grid(folder, key_frame)
             layout.remove_other_maps(folder, key_frame, keep=maps)
@@ -360,7 +361,8 @@ class ProbeBake:
         """The files the probe group reads beside the maps, each only when the scene asks for it:
         the sunless maps and the record's sun (Sun Highlight, sun_lobe.bake_sunless), and the
         view-dependent ladder's rungs (Glossy Lobes, view_lobe.bake), made without the sun where
-        the bake split one. Returns the record's entries; without either, the paper's files alone."""
+        the bake split one. Returns (the record's entries, the probe without its sun where the
+        record has one, else None); without either, the paper's files alone."""
         plate = self.scene.platelight
         ladder = view_lobe.in_use(plate.glossy_lobes, plate.sampling) and view_lobe.wanted(maps)
         record = {}
@@ -383,7 +385,7 @@ class ProbeBake:
             record.update(view_lobe.bake(folder, rung_source, heights, key_frame, sunless))
         else:
             view_lobe.remove(folder, key_frame)
-        return record
+        return record, (found[1] if sun_lobe.RECORD_KEY in record else None)
 
     def _write_behind(self, folder, key_frame, settings):
         """The layer behind the first surface (behind_render.py): its specular map and distance
@@ -395,10 +397,11 @@ class ProbeBake:
         result = compute_maps(env, settings, which=("specular",))
         distance_maps.write_behind(folder, result.maps["specular"], dist, key_frame)
 
-    def _write_irradiance_grid(self, env, points, origin, settings, folder, key_frame):
+    def _write_irradiance_grid(self, env, points, origin, settings, folder, key_frame, sunless):
         """The diffuse maps of a grid of points over the object's bounding box, seen through its
         probe's distance map (addon/ibl/irradiance_grid.py), as one atlas; returns what the
-        record keeps of it (the shader's box and grid size)."""
+        record keeps of it (the shader's box and grid size; ``sunless``: ``env`` is the probe
+        without the record's sun, which the shader adds exactly)."""
         lo, hi = irradiance_grid.grid_box(points.min(axis=0), points.max(axis=0))
         count = irradiance_grid.DEFAULT_POINTS
         offsets = irradiance_grid.grid_points(lo, hi, count) - origin
@@ -409,7 +412,7 @@ class ProbeBake:
                                                DIFFUSE_LMAX_EXACT, workers=prefs.threads if prefs else None)
         irradiance_grid.write_grid(folder, irradiance_grid.atlas(maps), key_frame)
         return {irradiance_grid.RECORD_KEY: {"lo": [float(x) for x in lo], "hi": [float(x) for x in hi],
-                                             "points": count, "height": height}}
+                                             "points": count, "height": height, "sunless": bool(sunless)}}
 
     def world_folder(self):
         return self.folder_for(layout.WORLD_FOLDER)
@@ -443,7 +446,7 @@ class ProbeBake:
             result = compute_maps(env, settings, which=MAP_NAMES)
             self.warnings.extend(f"world: {w}" for w in result.warnings)
             write_maps(folder, result.maps, frame=None)
-            sun = self._bake_lookup_maps(folder, env, settings, MAP_NAMES, None)
+            sun, _ = self._bake_lookup_maps(folder, env, settings, MAP_NAMES, None)
             layout.write_record(folder, None, digest, MAP_NAMES, source=source or "render", **sun)
             self.world_baked = True
         if scene.platelight.pack_maps:

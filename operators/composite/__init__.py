@@ -31,12 +31,12 @@ from ...addon import names
 from ...addon.errors import PlateLightError
 from ..common import report_error
 from .routes import ROUTES, Route, choose_route
-from .setup import (ADAPTIVE_MIN_SAMPLES, DEFAULT_METAL_SHADING, FILMED_CLAMP_DIRECT, METAL_SHADINGS,
-                    PATH_TRACED_CG_SAMPLES, SMOOTH_CG_SAMPLES, set_camera_shading, setup_composite,
+from .setup import (ADAPTIVE_MIN_SAMPLES, BAKED_SHADOW_SAMPLES, DEFAULT_METAL_SHADING, FILMED_CLAMP_DIRECT,
+                    METAL_SHADINGS, PATH_TRACED_CG_SAMPLES, SMOOTH_CG_SAMPLES, set_camera_shading, setup_composite,
                     smooth_without_denoiser)
 from .layers import configure_eevee
 
-__all__ = ("ADAPTIVE_MIN_SAMPLES", "DEFAULT_METAL_SHADING", "FILMED_CLAMP_DIRECT", "METAL_SHADINGS",
+__all__ = ("ADAPTIVE_MIN_SAMPLES", "BAKED_SHADOW_SAMPLES", "DEFAULT_METAL_SHADING", "FILMED_CLAMP_DIRECT", "METAL_SHADINGS",
            "PATH_TRACED_CG_SAMPLES", "PLATELIGHT_OT_setup_composite", "ROUTES", "Route",
            "SMOOTH_CG_SAMPLES", "choose_route", "classes", "configure_eevee", "set_camera_shading",
            "setup_composite", "smooth_without_denoiser")
@@ -107,9 +107,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
     baked_samples: IntProperty(
         name="Baked Shadow Samples",
         description="Samples of the layer showing the baked shadows (Baked Shadows method): the "
-        "bake is noise-free, so one per pixel serves; raise it to anti-alias a shadow that crosses "
-        "a phantom's outline",
-        default=1, min=1, max=1 << 20,
+        "bake is noise-free, so these only anti-alias the shadow's edges (a hard sun's most); "
+        "lower them for soft shadows",
+        default=BAKED_SHADOW_SAMPLES, min=1, max=1 << 20,
     )
     samples: IntProperty(
         name="Samples",

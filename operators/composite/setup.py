@@ -45,6 +45,9 @@ def set_camera_shading(objects, engine, metals):
 
 # A noise-free SBRDF needs only its edges anti-aliased, a path-traced object must converge (docs/decisions.md)
 SMOOTH_CG_SAMPLES, PATH_TRACED_CG_SAMPLES = 4, 64
+# The baked-shadow layer's samples: its ratio is noise-free, but one sample a pixel point-samples a
+# hard shadow's edge (docs/decisions.md, "The baked shadows at 16 samples")
+BAKED_SHADOW_SAMPLES = 16
 # Cycles' automatic minimum saved nothing (docs/bench/cg_layer_mirror_960x540.md)
 ADAPTIVE_MIN_SAMPLES = 4
 # paths off a metal that end on a filmed phantom count as direct light (docs/decisions.md, "Filmed phantoms")
@@ -52,7 +55,7 @@ FILMED_CLAMP_DIRECT = 100.0
 
 
 def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_form=True,
-                    shadow_clamp=4.0, denoise_shadows=True, baked_samples=1, samples=0,
+                    shadow_clamp=4.0, denoise_shadows=True, baked_samples=BAKED_SHADOW_SAMPLES, samples=0,
                     metals=DEFAULT_METAL_SHADING):
     """Composite ``scene``'s CG objects onto its plate by ``method`` (AUTO or a route of routes.py)
     in ``engine``; the options are platelight.setup_composite's. Returns the report's lines,
@@ -127,7 +130,7 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
             shadows.samples = 0
             shadows.material_override = None
             configure_layer(shadows, cg_coll, phantom_coll, "indirect", False)
-        else:   # the phantoms emit the baked, noise-free ratio: one sample serves (measured)
+        else:   # the phantoms emit the baked, noise-free ratio: the samples anti-alias its edges
             shadows.samples = baked_samples
             shadows.material_override = baked
             configure_layer(shadows, cg_coll, phantom_coll, "excluded", False)

@@ -229,9 +229,9 @@ def slug(name: str) -> str:
 
 # ------------------------------------------------------------------ the routes
 
-def run_platelight(bpy, spec, data, samples, out_dir, paper=False, shadow_bake=None):
+def run_platelight(bpy, spec, data, samples, out_dir, paper=False, shadow_bake=None, composite=None):
     """The README's order: plate, Apply SBRDF, Bake Probes, Bake Shadows, Set Up Composite
-    (``shadow_bake``: Bake Shadows' settings, else its defaults)."""
+    (``shadow_bake``, ``composite``: those operators' settings, else their defaults)."""
     scene, cg, phantoms = build(bpy, spec)
     scene.platelight.property_unset("phantom_surface")     # a user's scene: the plate on the phantoms
     for ob in phantoms:
@@ -243,7 +243,7 @@ def run_platelight(bpy, spec, data, samples, out_dir, paper=False, shadow_bake=N
     t1 = time.perf_counter()
     assert bpy.ops.platelight.bake_shadows(**(shadow_bake or {})) == {"FINISHED"}
     bake_s += time.perf_counter() - t1
-    assert bpy.ops.platelight.setup_composite(cg_samples=samples) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(cg_samples=samples, **(composite or {})) == {"FINISHED"}
     setup_s = time.perf_counter() - t0 - bake_s
     images, seconds = [], []
     for index in range(1, len(SCORED_FRAMES) + 1):

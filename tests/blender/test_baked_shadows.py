@@ -58,9 +58,10 @@ def test_baked_ratio_matches_the_analytic_shadow_of_a_floating_ball(bpy_clean, t
     capfd.readouterr()
     assert bpy.ops.platelight.setup_composite(method="BAKED", cg_samples=4) == {"FINISHED"}
     assert "do not match" not in capfd.readouterr().out
-    # the baked ratio is noise-free: its layer renders one sample per pixel (checked below)
+    # the baked ratio is noise-free: its layer's samples only anti-alias edges (checked below)
+    composite = importlib.import_module(f"{support.EXT_MODULE}.operators.composite")
     layers = {layer.name: layer.samples for layer in scene.view_layers if layer.use}
-    assert sorted(layers.values()) == [1, 4], layers
+    assert sorted(layers.values()) == sorted([composite.BAKED_SHADOW_SAMPLES, 4]), layers
     # nothing changed: a second bake renders nothing
     renders = probe_renders()
     assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
@@ -456,3 +457,29 @@ def test_a_mirror_sees_the_filmed_floor_shadowed_and_without_noise(bpy_clean, tm
     assert noise > 0.03, noise
     assert 0.9 < np.median(reflectance) < 1.05 and np.percentile(reflectance, 5) > 0.85
     assert abs(np.median(agreement) - 1) < 0.03 and np.percentile(np.abs(agreement - 1), 90) < 0.1
+
+
+def test_the_bake_bounces_the_cg_s_light_off_the_phantoms_at_their_filmed_albedo(bpy_clean, tmp_path):
+    """A white ball over a floor filmed dark, then bright: the bake renders the floor at the
+    albedo the plate gives it, so under the ball (where the ball's underside, lit by the floor,
+    sends light back) the brighter floor's ratio is higher; a fixed grey would bake both alike."""
+    from platelight.addon import names
+    from platelight.addon.exr_io import write_exr
+
+    bpy = bpy_clean
+    scene, floor, ball = floating_black_ball(bpy, tmp_path)
+    ball.data.materials[0].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
+    shadows = importlib.import_module(f"{support.EXT_MODULE}.operators.baked_shadows")
+    under = {}
+    for grey, name in ((0.2, "dark"), (0.8, "bright")):
+        plate = tmp_path / f"{name}.exr"
+        write_exr(plate, np.full((cs.H, cs.W, 3), grey, np.float32))
+        assert bpy.ops.platelight.setup_plate(filepath=str(plate)) == {"FINISHED"}
+        assert bpy.ops.platelight.bake_shadows(height=64, samples=16, force=True) == {"FINISHED"}
+        # a white floor under the uniform sky of 1 films 1: the plate's value is the albedo
+        assert shadows.matte_albedo(floor) == pytest.approx((grey,) * 3, abs=0.03)
+        assert list(floor[names.MEAN_ALBEDO_KEY]) == pytest.approx([grey] * 3, abs=0.03)
+        ratio = read_exr(tmp_path / "maps" / names.SHADOWS_FOLDER / "shadow_ratio.exr") + 1.0
+        under[grey] = float(ratio[-4:].mean())           # straight down: the floor under the ball
+    black = analytic_ratio(np.zeros(3))                   # 0.75: what a black ball leaves
+    assert under[0.2] > black + 0.01 and under[0.8] > under[0.2] + 0.03, under

@@ -21,6 +21,7 @@ asserts how many pixels remain.
 """
 from __future__ import annotations
 
+import importlib
 import math
 import os
 import sys
@@ -596,18 +597,32 @@ def _image_lookup(img, x, y):
             + (img[r1, c0] * (1 - fx) + img[r1, c1] * fx) * fy)
 
 
-def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path, studio_hdris):
+@pytest.mark.parametrize("with_sun", [False, True])
+def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path, studio_hdris, with_sun):
     """Diffuse Parallax on: the bake writes the grid atlas and its record, and the render is
     rho_d times the trilinear blend of the eight grid maps around the shading point, each read
     along N from its tile of the atlas (numpy from the record: irradiance_grid.trilinear and
-    atlas_uv, and an Image Texture's bilinear filter written here)."""
+    atlas_uv, and an Image Texture's bilinear filter written here). Under a sun (one hot texel
+    of the shrunk world) the grid is baked without it and the sun's Lambert term is added
+    (sun_lobe.lambert); a grid that holds the sun (a record without "sunless") is not read
+    beside that term."""
     import json
 
+    from platelight.addon import names as pl_names
     from platelight.addon.exr_io import read_exr
     from platelight.addon.ibl import irradiance_grid as ig
+    from platelight.addon.ibl import sun_lobe
 
     bpy = bpy_clean
     scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["sunset"])
+    if with_sun:            # the shrunk world at 8 times its size, a small hot disc 50 degrees up
+        from platelight.addon.exr_io import write_exr
+
+        world = read_exr(tmp_path / "world.exr").repeat(8, axis=0).repeat(8, axis=1)
+        world[70:73, 200:203] = 2000.0
+        write_exr(tmp_path / "world.exr", world)
+        bpy.data.images["world.exr"].reload()
+        scene.platelight.probe_sun_lobe = True
     scene.platelight.probe_diffuse_parallax = True
     select_only(bpy, sphere)
     assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
@@ -619,9 +634,13 @@ def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path,
     node.inputs["Glossiness"].default_value = 0.0
     assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
     folder = bpy.path.abspath(sphere.platelight.probe_dir)
+    record = json.loads(open(os.path.join(folder, "bake.json")).read())
+    sun = sun_lobe.from_record(record)
+    assert (sun is not None) == with_sun
     assert sorted(f for f in os.listdir(folder) if f.endswith(".exr")) == \
-        ["diffuse.exr", ig.grid_filename(), "distance.exr"]
-    grid = json.loads(open(os.path.join(folder, "bake.json")).read())[ig.RECORD_KEY]
+        sorted(["diffuse.exr", ig.grid_filename(), "distance.exr"] + (["diffuse_sunless.exr"] if sun else []))
+    grid = record[ig.RECORD_KEY]
+    assert grid["sunless"] == (sun is not None)
     atlas = read_exr(os.path.join(folder, ig.grid_filename()), "RGB").astype(np.float64)
     n, height = grid["points"], grid["height"]
     assert n == ig.DEFAULT_POINTS and atlas.shape == (height + 2 * ig.PAD, n ** 3 * (2 * height + 2 * ig.PAD), 3)
@@ -639,10 +658,20 @@ def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path,
         for k in range(8):
             x, y = ig.atlas_uv(tiles[..., k], u, v, n ** 3, height)
             total = total + weights[..., k:k + 1] * _image_lookup(atlas, x, y)
+        if sun is not None:
+            total = total + sun_lobe.lambert(np.nan_to_num(normals), sun)
         return np.array(albedo) * total, {"N": (normals, height)}
 
     image = render(bpy, tmp_path, "grid.exr")
     assert_matches(image, reference, sphere_normals())
+    if sun is not None:
+        del record[ig.RECORD_KEY]["sunless"]
+        open(os.path.join(folder, "bake.json"), "w").write(json.dumps(record))
+        probe_maps = importlib.import_module(f"{support.EXT_MODULE}.node_groups.probe_maps")
+        probe_maps.set_parallax()
+        group = bpy.data.node_groups[pl_names.PROBE_GROUP_PREFIX + "Sphere"]
+        assert group.nodes[pl_names.DIFFUSE_PARALLAX_NODE].outputs[0].default_value == 0.0
+        return
     # not the paper's centre look-up: the lower half sees the red floor from close by
     centre = np.array(albedo) * _lookup(read_maps(bpy, sphere)["diffuse"], sphere_normals())
     inside = np.isfinite(centre[..., 0])
