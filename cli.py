@@ -11,13 +11,13 @@ import sys
 from .addon.errors import PlateLightError
 from .addon.wording import CLI_FLAGS as FLAGS
 
-# subcommand -> module (relative to this package) that defines add_parser(); the engine's
-# commands run without Blender, the drivers' start headless Blender (drivers/headless.py)
+# subcommand -> module (relative to this package) that defines add_parser(); maps, track and
+# probe run the engine without Blender, the others start headless Blender (drivers/headless.py)
 SUBCOMMANDS = {
-    "maps": ".addon.ibl.cli_maps",
+    "maps": ".drivers.maps",
     "demo": ".drivers.demo",
-    "track": ".addon.capture.cli_track",
-    "probe": ".addon.capture.cli_probe",
+    "track": ".drivers.track",
+    "probe": ".drivers.probe",
     "bake": ".drivers.bake",
     "render": ".drivers.render",
     "farm-job": ".drivers.farm_job",

@@ -18,6 +18,22 @@ CLI_FLAGS = {
 }
 
 
+def typed_numbers(text: str) -> list[float]:
+    """Comma-separated numbers as a user types them, a fraction ('1/250') counting as its value
+    (exposure times are written so); ValueError where one is not a number."""
+    values = []
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        numerator, slash, denominator = item.partition("/")
+        try:
+            values.append(float(numerator) / float(denominator) if slash else float(item))
+        except ZeroDivisionError:
+            raise ValueError(f"{item!r} divides by zero") from None
+    return values
+
+
 def fill(template: str, inputs: dict, names: dict) -> str:
     """``template`` with each ``{key}`` of ``inputs`` replaced by ``names[key]`` or its plain words.
     Plain replacement, not str.format: file names in the sentence may hold braces."""

@@ -13,12 +13,12 @@ from .common import NeedsScene, report_error
 
 
 def _numbers(text: str, what: str, count=None):
-    from ..addon.capture.cli_probe import eval_fraction
     from ..addon.errors import PlateLightError
+    from ..addon.wording import typed_numbers
 
     try:
-        values = [eval_fraction(v) for v in text.split(",") if v.strip()]
-    except (ValueError, ZeroDivisionError):
+        values = typed_numbers(text)
+    except ValueError:
         raise PlateLightError(f"The {what} must be comma-separated numbers, not '{text}'.") from None
     if count is not None and len(values) != count:
         raise PlateLightError(f"The {what} needs {count} comma-separated numbers, not '{text}'.")

@@ -58,3 +58,13 @@ def test_engine_sentences_name_no_command_line_flags():
         found += [f"{path.relative_to(support.REPO)}:{line}: {text}" for line, text in _sentences(path)
                   if " --" in f" {text}" or text.startswith("--")]
     assert not found, found
+
+
+def test_typed_numbers_take_fractions_and_refuse_what_is_not_a_number():
+    from platelight.addon.wording import typed_numbers
+
+    assert typed_numbers("1/250, 0.004,,2") == [0.004, 0.004, 2.0]
+    assert typed_numbers("") == []
+    for bad in ("1/0", "a", "1/2/3", "1/"):
+        with pytest.raises(ValueError):
+            typed_numbers(bad)

@@ -7,31 +7,22 @@ import os
 import sys
 import time
 
-from ..errors import PlateLightError
-from ..wording import CLI_FLAGS, worded
-from ..fileio import ensure_writable_folder, write_json_atomic
-from .mirror_ball import FILLS
+from ..addon.errors import PlateLightError
+from ..addon.wording import CLI_FLAGS, typed_numbers, worded
+from ..addon.fileio import ensure_writable_folder, write_json_atomic
+from ..addon.capture.mirror_ball import FILLS
 
 
 def _floats(count: int | None):
     def parse(text: str):
         try:
-            values = [float(eval_fraction(v)) for v in text.split(",") if v.strip()]
+            values = typed_numbers(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got '{text}'") from None
         if count is not None and len(values) != count:
             raise argparse.ArgumentTypeError(f"expected {count} comma-separated numbers, got '{text}'")
         return values
     return parse
-
-
-def eval_fraction(text: str) -> float:
-    """'1/250' or '0.004' -> 0.004 (exposure times are usually written as fractions)."""
-    text = text.strip()
-    if "/" in text:
-        num, den = text.split("/", 1)
-        return float(num) / float(den)
-    return float(text)
 
 
 def add_parser(sub) -> None:
@@ -81,8 +72,8 @@ def write_candidates(report: str, images, fits, err) -> None:
     """The report of a search that chose no ball: its candidates, the error, their picture."""
     import cv2
 
-    from ..footage import read_image
-    from .probe import candidate_json, candidates_picture
+    from ..addon.footage import read_image
+    from ..addon.capture.probe import candidate_json, candidates_picture
 
     write_json_atomic(report, {"error": worded(err, CLI_FLAGS), "candidates": [candidate_json(f) for f in fits]})
     cv2.imwrite(picture_path(report), candidates_picture(read_image(images[len(images) // 2]), fits))
@@ -110,10 +101,10 @@ def camera_from_poses(path: str, frame: int):
 def run(args) -> int:
     import cv2
 
-    from ..exr_io import write_exr
-    from . import ball_finder
-    from .mirror_ball import Ball
-    from .probe import candidates_picture, make_probe
+    from ..addon.exr_io import write_exr
+    from ..addon.capture import ball_finder
+    from ..addon.capture.mirror_ball import Ball
+    from ..addon.capture.probe import candidates_picture, make_probe
 
     if args.height < 4:
         raise PlateLightError("The probe height must be at least 4 pixels.")
@@ -123,14 +114,14 @@ def run(args) -> int:
     camera = camera_from_poses(args.camera_from, args.frame) if args.camera_from else None
     align, intrinsics = None, None
     if args.align_marker is not None:
-        from .targets import MarkerTarget
+        from ..addon.capture.targets import MarkerTarget
 
         align = MarkerTarget(args.dictionary, args.align_marker)
         if args.focal_px is None and args.focal_mm is None:
             raise PlateLightError("Aligning on a marker needs the camera's focal length (--focal-px or --focal-mm).")
     if (args.focal_px is not None or args.focal_mm is not None) and os.path.isfile(args.images[0]):
-        from ..footage import read_image
-        from .intrinsics import Intrinsics
+        from ..addon.footage import read_image
+        from ..addon.capture.intrinsics import Intrinsics
 
         h, w = read_image(args.images[0]).shape[:2]     # (a missing bracket is reported by make_probe)
         intrinsics = (Intrinsics.from_focal_px(args.focal_px, w, h) if args.focal_px is not None

@@ -6,12 +6,12 @@ import os
 import sys
 import time
 
-from ..errors import PlateLightError
-from ..wording import CLI_FLAGS, worded
-from ..hdr_io import read_probe
-from ..fileio import ensure_writable_folder, write_json_atomic
-from .equirect import from_pbrt_latlong
-from .maps import LOBES, MAP_NAMES, SH_JSON_LMAX, MapSettings, compute_maps, write_maps
+from ..addon.errors import PlateLightError
+from ..addon.wording import CLI_FLAGS, worded
+from ..addon.hdr_io import read_probe
+from ..addon.fileio import ensure_writable_folder, write_json_atomic
+from ..addon.ibl.equirect import from_pbrt_latlong
+from ..addon.ibl.maps import LOBES, MAP_NAMES, SH_JSON_LMAX, MapSettings, compute_maps, write_maps
 
 
 def _map_list(text: str) -> tuple:

@@ -6,9 +6,9 @@ import os
 import sys
 import time
 
-from ..errors import PlateLightError
-from ..wording import CLI_FLAGS, worded
-from ..fileio import ensure_writable_folder, write_json_atomic
+from ..addon.errors import PlateLightError
+from ..addon.wording import CLI_FLAGS, worded
+from ..addon.fileio import ensure_writable_folder, write_json_atomic
 
 
 def _squares(text: str) -> tuple[int, int]:
@@ -50,7 +50,7 @@ def add_parser(sub) -> None:
 
 
 def make_target(args):
-    from .targets import CharucoTarget, MarkerTarget
+    from ..addon.capture.targets import CharucoTarget, MarkerTarget
 
     if args.marker_size is None:
         raise PlateLightError("Give the printed marker's side with --marker-size (metres).")
@@ -63,12 +63,12 @@ def make_target(args):
 
 
 def run(args) -> int:
-    from .intrinsics import load_calibration
-    from .tracking import track
+    from ..addon.capture.intrinsics import load_calibration
+    from ..addon.capture.tracking import track
 
     target = make_target(args)
     if args.print_board:
-        from .boards import write_target
+        from ..addon.capture.boards import write_target
 
         ensure_writable_folder(os.path.dirname(os.path.abspath(args.print_board)))
         write_target(args.print_board, target, dpi=args.dpi)
