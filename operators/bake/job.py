@@ -29,7 +29,7 @@ from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, M
 from ..common import GEOMETRY_TYPES, addon_preferences
 from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin, wants_behind_layer,
                      renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
-from . import distance_render
+from .distance_render import distance_height, surface_points, write_probe_distance
 from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
 from .records import pack_maps, probe_hash, world_maps_hash
 from .scene_state import SceneState
@@ -208,7 +208,7 @@ class ProbeBake:
                 corners = [tuple(c) for c in cam.data.view_frame(scene=scene)]
                 depsgraph = self.context.evaluated_depsgraph_get()
                 for ob in sharp:
-                    points = distance_render.surface_points(ob, depsgraph)
+                    points = surface_points(ob, depsgraph)
                     widest[ob.name] = max(widest[ob.name], probe_size.projected_extent(
                         np.array(cam.matrix_world), corners, width_px, points,
                         orthographic=cam.data.type == "ORTHO"))
@@ -303,7 +303,7 @@ class ProbeBake:
         owner = owner_visibility(ob, self.scene.platelight.probe_owner_shadows)
         wants_grid = needs.wants_irradiance_grid(maps, self.scene.platelight.probe_diffuse_parallax)
         height = self.heights.get(ob.name)
-        wants_behind = wants_behind_layer(ob, maps, self.scene.platelight, distance_render.distance_height(
+        wants_behind = wants_behind_layer(ob, maps, self.scene.platelight, distance_height(
             height or self.scene.platelight.probe_height))
         digest = self.probe_hash(ob, origin, maps, owner, wants_grid, wants_behind)
         if self.use_cache and layout.is_cached(folder, key_frame, digest, maps):
@@ -317,7 +317,7 @@ class ProbeBake:
             # the glossy look-ups and the diffuse grid both see the scene through the distance map
             wants_distance = wants_grid or any(name != "diffuse" for name in maps)
             placed = {OWNER_RENDER_ARGUMENT[owner]: [ob]}
-            points = (distance_render.surface_points(ob, self.context.evaluated_depsgraph_get())
+            points = (surface_points(ob, self.context.evaluated_depsgraph_get())
                       if wants_distance else None)
             reach = float(np.linalg.norm(points - origin, axis=1).max()) if wants_behind else None
             env = self.render_probe(origin, distance=wants_distance, height=height, behind=reach, **placed)
@@ -328,7 +328,7 @@ class ProbeBake:
             sun, sunless_env = self._bake_lookup_maps(folder, env, settings, maps, key_frame)
             grid = {}
             if wants_distance:
-                self.warnings.extend(f"{ob.name}: {w}" for w in distance_render.write_probe_distance(
+                self.warnings.extend(f"{ob.name}: {w}" for w in write_probe_distance(
                     self._renderer.distance, folder, key_frame, points - origin))
             else:
                 distance_maps.remove_distance(folder, key_frame)

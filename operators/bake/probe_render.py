@@ -21,7 +21,9 @@ from ...addon.ibl.distance import near_silhouette
 from ...addon.ibl.equirect import downsample_area
 from ..common import addon_preferences
 from ..world_environment import world_image
-from . import behind_render, distance_render, pass_denoise
+from .behind_render import peeled, peeled_distance_material, remove as remove_peeled_material
+from .distance_render import render_distance
+from .pass_denoise import denoise_pass
 
 # The PANO camera with this rotation renders the Environment Texture's layout (design.md).
 PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
@@ -212,16 +214,16 @@ class ProbeRenderer:
             finally:                         # before the distance map: it must see the catchers
                 for owner, attr, value in caught:
                     setattr(owner, attr, value)
-            self.distance = (distance_render.render_distance(self.scene, self.view_layer, self._tmpdir,
+            self.distance = (render_distance(self.scene, self.view_layer, self._tmpdir,
                                                              self.camera.data.clip_end)
                              if distance else None)
             self.behind = None
             if behind and self.distance and near_silhouette(self.distance[0], behind):
-                with behind_render.peeled(self.scene):
+                with peeled(self.scene):
                     behind_env = self._render_panorama(origin, height)
-                self.behind = (behind_env, distance_render.render_distance(
+                self.behind = (behind_env, render_distance(
                     self.scene, self.view_layer, self._tmpdir, self.camera.data.clip_end,
-                    behind_render.peeled_distance_material()))
+                    peeled_distance_material()))
         finally:
             for ob, flag, value in restore:
                 setattr(ob, flag, value)
@@ -275,7 +277,7 @@ class ProbeRenderer:
             if self._compositor_denoises:
                 first, last = rows or (0, height)     # as Cycles, only the render border's rows
                 normal = read_exr(path, "RGB", layer=DENOISING_NORMAL_PASS)
-                caught[first:last] = pass_denoise.denoise_pass(
+                caught[first:last] = denoise_pass(
                     caught[first:last], normal[first:last], self.scene.cycles,
                     os.path.join(self._tmpdir, "denoised.exr"))
             return np.concatenate([caught, alpha], axis=-1)
@@ -318,7 +320,7 @@ class ProbeRenderer:
                 bpy.data.images.remove(image)
         self._render_results = None
         remove_distance_material()
-        behind_render.remove()
+        remove_peeled_material()
         if self._tmpdir:
             shutil.rmtree(self._tmpdir, ignore_errors=True)
             self._tmpdir = None
