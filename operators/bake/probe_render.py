@@ -30,6 +30,10 @@ PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
 # The multilayer EXR's layer (pass) that holds Cycles' shadow catcher ratio.
 SHADOW_CATCHER_PASS = "Shadow Catcher"
+# Cycles' Filter Glossy in every bake's render: it widens glossy lobes met after a bounce, and so
+# moved the light a mirror CG sends onto the floor (its shadow bake 3.5 % too dark; docs/decisions.md,
+# "Bakes at Filter Glossy 0"). The bakes are denoised and reused: their noise costs less than its bias.
+BAKE_FILTER_GLOSSY = 0.0
 DENOISING_NORMAL_PASS = "Denoising Normal"
 # Cycles builds the world's light-importance map at each render session. Capping it at 256
 # columns (scene.platelight.probe_fast_world) makes a 128x64 probe about 3x faster, but under a
@@ -129,6 +133,7 @@ class ProbeRenderer:
         state.set(cycles, "device", "CPU")
         state.set(cycles, "samples", self.samples or scene.platelight.probe_samples)
         state.set(cycles, "use_adaptive_sampling", False)
+        state.set(cycles, "blur_glossy", BAKE_FILTER_GLOSSY)
         # glass shows the sky it refracts (a transparent-glass film would lay the unrefracted sky there)
         state.set(cycles, "film_transparent_glass", False)
         state.set(cycles, "use_denoising", self.denoise)
