@@ -34,11 +34,8 @@ from ..addon.ibl.maps import GLOSSINESS_KNOTS, MAP_NAMES, PULL_BELOW, ROUGHNESS_
 from ..addon.material.params import PARAMETERS
 from ._build import VERSION_KEY, Graph, float_curve, io_nodes, shader_group, sync_interface, tent_weights
 
-# Bump when the group's internals or interface change: older groups are rebuilt in place.
-# 2: Paper Falloff input (existing instances upgraded with 1 = their old look); 3: look-up tilt;
-# 4: Anisotropy input, Specular Spread output; 5: Lobe View, Lobe Tangent, Lobe Alphas outputs;
-# 6: Fresnel Peak input (existing instances get 1: their old look); 7: the lobe's alphas widened
-# by the peak's pull at glossiness 0 (maps.pulled_roughness)
+# Bump when the group's internals or interface change: older groups are rebuilt in place, and
+# inputs added since keep existing materials' look (_default_new_inputs; version 1's falloff).
 VERSION = 7
 PHI_MIN = 1.0e-4
 
