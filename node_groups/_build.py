@@ -155,6 +155,12 @@ def io_nodes(graph):
     return gin, gout
 
 
+def place_io(graph, gin, gout):
+    """The group's input left of its nodes and its output right of them, once they are built."""
+    gin.location = (-400, 0)
+    gout.location = (200 * (graph.column // 12 + 1), 0)
+
+
 def strength_against_film_exposure(strength_socket, scene):
     """Drive an Emission's Strength to 1 / ``scene``'s Cycles film exposure. What a PlateLight
     emission shows is already as filmed (the plate) or a ratio, and Cycles' film exposure would

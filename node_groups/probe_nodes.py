@@ -16,7 +16,7 @@ from ..addon.ibl.anisotropy import TAP_SLOPES
 from ..addon.ibl.distance import (BEHIND_BISECT, BEHIND_GROWTH, BEHIND_JUMP, BEHIND_MAPS, BEHIND_NEAR, BEHIND_STEPS,
                                   DISTANCE_NAME, FAR, SECANT_STEPS, STEP_START, STEPS, behind_name)
 from ..addon.ibl.maps import (GLOSSINESS_KNOTS, GLOSSINESS_SCALE, MAP_HALF_ANGLES, MAP_NAMES, ROUGHNESS_KNOTS)
-from ._build import Graph, float_curve, io_nodes, knot_position, tent_weights, tents
+from ._build import Graph, float_curve, io_nodes, knot_position, place_io, tent_weights, tents
 
 DISTANCE_BEHIND = behind_name(DISTANCE_NAME)   # the nodes reading the layer behind's distance map
 # What the specular look-ups read along the streak: the ladder's maps after the diffuse one (which
@@ -409,5 +409,4 @@ def build(tree, behind=False):
     g.link(diffuse, gout.inputs["Diffuse Term"])
     g.link(specular, gout.inputs["Specular Term"])
     g.link(refraction, gout.inputs["Refraction Term"])
-    gin.location = (-400, 0)
-    gout.location = (200 * (g.column // 12 + 1), 0)
+    place_io(g, gin, gout)

@@ -32,7 +32,7 @@ from ..addon.ibl.anisotropy import ASPECT_SCALE
 from ..addon.ibl.lobe_tilt import MU, TILT
 from ..addon.ibl.maps import GLOSSINESS_KNOTS, MAP_NAMES, PULL_BELOW, ROUGHNESS_KNOTS
 from ..addon.material.params import PARAMETERS
-from ._build import VERSION_KEY, Graph, float_curve, io_nodes, shader_group, sync_interface, tent_weights
+from ._build import VERSION_KEY, Graph, float_curve, io_nodes, place_io, shader_group, sync_interface, tent_weights
 
 # Bump when the group's internals or interface change: older groups are rebuilt in place, and
 # inputs added since keep existing materials' look (_default_new_inputs; version 1's falloff).
@@ -215,8 +215,7 @@ def _build(tree):
     g.link(emission, gout.inputs["Emission"])
     g.link(fresnel, gout.inputs["Fresnel"])
     g.link(falloff_f, gout.inputs["Falloff"])
-    gin.location = (-400, 0)
-    gout.location = (200 * (g.column // 12 + 1), 0)
+    place_io(g, gin, gout)
 
 
 def _anisotropy(g, inp, fresnel):
