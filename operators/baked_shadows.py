@@ -30,7 +30,7 @@ from ..addon.ibl import distance as distance_maps
 from ..node_groups.baked_shadow import baked_shadow_material
 from .bake import pass_denoise
 from .bake.inputs import Describer, point_inside, world_corners, world_description
-from .bake.probe_render import BAKE_FILTER_GLOSSY, ProbeRenderer
+from .bake.probe_render import ProbeRenderer, render_key
 from .bake.scene_state import SceneState
 from . import motion
 from .common import GEOMETRY_TYPES, classify_objects
@@ -129,8 +129,7 @@ def shadows_hash(scene, height, samples, method, denoiser) -> str:
     # Cycles' denoiser adds nothing to the hash: a bake whose record names no denoiser stays current
     settings = [int(height), int(samples), str(method)] + ([] if denoiser == "CYCLES" else [str(denoiser)])
     return content_hash({"world": content_hash(world_description(scene)), "seen": seen, "settings": settings,
-                         "render": [cycles.max_bounces, bake_diffuse_bounces(cycles), cycles.glossy_bounces,
-                                    cycles.transmission_bounces, BAKE_FILTER_GLOSSY]})
+                         "render": render_key(cycles, bake_diffuse_bounces(cycles))})
 
 
 # The bake's diffuse bounces at most: colour bleeding needs 2, and more biases the catcher's ratio

@@ -30,9 +30,8 @@ PANO_ROTATION = (math.pi / 2, 0.0, -math.pi / 2)
 PROBE_CLIP_START = 1e-3
 # The multilayer EXR's layer (pass) that holds Cycles' shadow catcher ratio.
 SHADOW_CATCHER_PASS = "Shadow Catcher"
-# Cycles' Filter Glossy in every bake's render: it widens glossy lobes met after a bounce, and so
-# moved the light a mirror CG sends onto the floor (its shadow bake 3.5 % too dark; docs/decisions.md,
-# "Bakes at Filter Glossy 0"). The bakes are denoised and reused: their noise costs less than its bias.
+# Cycles' Filter Glossy in every bake: its blur biases the light a mirror CG sends onto the floor
+# (docs/decisions.md, "Bakes at Filter Glossy 0").
 BAKE_FILTER_GLOSSY = 0.0
 DENOISING_NORMAL_PASS = "Denoising Normal"
 # Cycles builds the world's light-importance map at each render session. Capping it at 256
@@ -49,6 +48,13 @@ render_count = 0
 # A sharp reflector or a glossy metal is hidden from camera rays only (addon/bake/needs.owner_visibility).
 SHADOW_ONLY_HIDDEN_RAYS = ("visible_camera", "visible_diffuse", "visible_glossy",
                            "visible_transmission", "visible_volume_scatter")
+
+
+def render_key(cycles, diffuse_bounces=None) -> list:
+    """The render settings a bake's pixels depend on, for its cache hash: the scene's bounce limits
+    (``diffuse_bounces`` where the bake caps them) and the bake's own Filter Glossy."""
+    diffuse = cycles.diffuse_bounces if diffuse_bounces is None else diffuse_bounces
+    return [cycles.max_bounces, diffuse, cycles.glossy_bounces, cycles.transmission_bounces, BAKE_FILTER_GLOSSY]
 
 
 class ProbeRenderer:

@@ -18,7 +18,7 @@ from ...addon.ibl.irradiance_grid import VERSION as GRID_VERSION
 from ...addon.ibl.maps import MapSettings, map_filename
 from ...addon.ibl import view_lobe
 from ...addon.ibl.sun_lobe import VERSION as SUN_LOBE_VERSION
-from .probe_render import BAKE_FILTER_GLOSSY
+from .probe_render import render_key
 
 
 def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_height=None, owner=None,
@@ -45,8 +45,7 @@ def probe_hash(scene, origin, maps, world_digest, seen, map_settings, sized_heig
                      settings.probe_fast_world, settings.probe_owner_shadows,
                      settings.probe_distance],
         **_lobes_key(map_settings),
-        "render": [cycles.max_bounces, cycles.diffuse_bounces, cycles.glossy_bounces,
-                   cycles.transmission_bounces, BAKE_FILTER_GLOSSY],
+        "render": render_key(cycles),
         "seen": seen,
     })
 
