@@ -75,8 +75,9 @@ def ensure_ratio_group():
 
 
 def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.types.Material:
-    """The override material (made or rebuilt in place): it emits the baked ratio group's *Ratio*,
-    the group rebuilt for ``ratio_path``, ``distance_path`` and ``centre``."""
+    """The override material (made or rebuilt in place): it emits the baked ratio group's *Ratio*
+    and writes it to the AOV names.BAKED_RATIO_AOV, the group rebuilt for ``ratio_path``,
+    ``distance_path`` and ``centre``."""
     group = baked_ratio_group(ratio_path, distance_path, centre)
     material = bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) or compat.new_material(names.BAKED_SHADOW_MATERIAL)
     tree = compat.shader_tree(material)
@@ -89,4 +90,20 @@ def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.ty
     strength_against_film_exposure(emit.inputs["Strength"], bpy.context.scene)
     out = g.node("ShaderNodeOutputMaterial")
     g.link(emit.outputs["Emission"], out.inputs["Surface"])
+    ensure_ratio_aov(material)
     return material
+
+
+def ensure_ratio_aov(material):
+    """Make the override ``material`` also write its ratio to the AOV names.BAKED_RATIO_AOV (a
+    material baked without it gets it here): a shadow catcher renders transparent, so where the
+    phantoms also catch a moving CG's shadow the layer's ratio is read from the AOV
+    (node_groups/compositor_tree.py)."""
+    tree = compat.shader_tree(material)
+    if any(node.bl_idname == "ShaderNodeOutputAOV" for node in tree.nodes):
+        return
+    ratio = next(node for node in tree.nodes if node.bl_idname == "ShaderNodeGroup")
+    aov = tree.nodes.new("ShaderNodeOutputAOV")
+    aov.aov_name = names.BAKED_RATIO_AOV
+    aov.location = (ratio.location.x + 200, ratio.location.y - 200)
+    tree.links.new(ratio.outputs["Ratio"], aov.inputs["Color"])

@@ -53,15 +53,21 @@ def shadows_folder(scene) -> str:
     return os.path.normpath(bpy.path.abspath(maps_dir.rstrip("/\\") + "/" + names.SHADOWS_FOLDER))
 
 
-def check_still(scene, objects):
-    """Raise unless every object keeps its place and shape over the scene's range."""
-    moving = motion.motions(scene, objects)
-    if moving:
-        first = next(iter(moving.values()))
-        more = f" (and {len(moving) - 1} more)" if len(moving) > 1 else ""
-        raise PlateLightError(f"{first.sentence()}{more}: baked shadows need CG objects and phantoms "
-                              "that stand still; Set Up Composite's Automatic method path-traces "
-                              "their shadows every frame instead.")
+def moving_cg(scene, cg, phantoms) -> dict:
+    """{name: Motion} of the CG objects that move or deform over the shot: the bake leaves their
+    shadows out (Set Up Composite renders them every frame). Raises where nothing can be baked:
+    a phantom that moves (the bake is a picture of the phantoms), or no CG that stands still."""
+    moving = motion.motions(scene, cg + phantoms)
+    phantom_names = {ob.name for ob in phantoms}
+    moved_phantoms = [m for name, m in moving.items() if name in phantom_names]
+    if moved_phantoms or len(moving) == len(cg):
+        first = (moved_phantoms or list(moving.values()))[0]
+        more = len(moving) - 1
+        raise PlateLightError(f"{first.sentence()}{f' (and {more} more)' if more else ''}: baked "
+                              "shadows need phantoms and at least one CG object that stand still; "
+                              "Set Up Composite's Automatic method path-traces the shadows every "
+                              "frame instead.")
+    return moving
 
 
 def world_box(objects):
@@ -104,9 +110,10 @@ def _matte(albedo):
     return material
 
 
-def shadows_hash(scene, height, samples, method, denoiser) -> str:
+def shadows_hash(scene, height, samples, method, denoiser, moving=frozenset()) -> str:
     """The content hash of what the shadow panorama depends on: the world, every renderable
-    object (place, shape, materials, visibility), the bake's settings and Cycles' bounces. A
+    object (place, shape, materials, visibility) but the ``moving`` CG (names: the bake leaves
+    them out, so only which they are counts), the bake's settings and Cycles' bounces. A
     phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
     the ratio but for the light the CG sends back, so each phantom's matte albedo (matte_albedo)
     stands in for them; the plate-albedo material is remade at every composite set-up. The bake hides
@@ -123,13 +130,16 @@ def shadows_hash(scene, height, samples, method, denoiser) -> str:
         described["matte_albedo"] = matte_albedo(ob)
         return content_hash(described)
 
-    seen = sorted((ob.name_full, digest(ob)) for ob in scene.objects
-                  if not ob.hide_render and (ob.type in GEOMETRY_TYPES or ob.type == "LIGHT"))
+    seen = sorted((ob.name_full, digest(ob)) for ob in scene.objects if ob.name not in moving
+                  and not ob.hide_render and (ob.type in GEOMETRY_TYPES or ob.type == "LIGHT"))
     cycles = scene.cycles
     # Cycles' denoiser adds nothing to the hash: a bake whose record names no denoiser stays current
     settings = [int(height), int(samples), str(method)] + ([] if denoiser == "CYCLES" else [str(denoiser)])
-    return content_hash({"world": content_hash(world_description(scene)), "seen": seen, "settings": settings,
-                         "render": render_key(cycles, bake_diffuse_bounces(cycles))})
+    described = {"world": content_hash(world_description(scene)), "seen": seen, "settings": settings,
+                 "render": render_key(cycles, bake_diffuse_bounces(cycles))}
+    if moving:              # absent when nothing moves: the hash of a still shot's bake is kept
+        described["moving"] = sorted(moving)
+    return content_hash(described)
 
 
 # The bake's diffuse bounces at most: colour bleeding needs 2, and more biases the catcher's ratio
@@ -148,16 +158,21 @@ def recorded_denoiser(record) -> str:
     return record.get("denoiser") or "CYCLES"
 
 
-def baked_is_current(scene) -> bool | None:
-    """Do the baked shadows on disk still fit the scene? None when there is no readable bake."""
+def baked_is_current(scene, moving=None) -> bool | None:
+    """Do the baked shadows on disk still fit the scene, whose ``moving`` CG (names; None: found
+    here) the bake must have left out? None when there is no readable bake."""
     try:
         record = engine.read_record(shadows_folder(scene))
     except PlateLightError:
         return None
     if record is None:
         return None
+    if moving is None:
+        cg, phantoms = classify_objects(scene)
+        moving = motion.motions(scene, cg + phantoms)
     return record.get("hash") == shadows_hash(scene, record.get("height", 0), record.get("samples", 0),
-                                              record.get("method", ""), recorded_denoiser(record))
+                                              record.get("method", ""), recorded_denoiser(record),
+                                              frozenset(moving))
 
 
 DEFAULT_HEIGHT, DEFAULT_SAMPLES = 512, 16
@@ -193,7 +208,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         raise PlateLightError("There are no phantoms to catch the shadows: mark the stand-ins for "
                               "real surfaces as Phantom.")
     folder = shadows_folder(scene)
-    check_still(scene, cg + phantoms)
+    moving = moving_cg(scene, cg, phantoms)
+    still = [ob for ob in cg if ob.name not in moving]
     apply_phantom_surfaces(scene, phantoms)     # as the composite will show them (hash and render)
     record = engine.read_record(folder)
     height = int(height or (record or {}).get("height") or DEFAULT_HEIGHT)
@@ -216,12 +232,14 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         denoiser = "CYCLES"
         notes.append("This Blender's compositor cannot denoise (no OpenImageDenoise): Cycles denoised "
                      "the shadow bake.")
-    digest = shadows_hash(scene, height, samples, method, denoiser)
+    notes += [f"{m.sentence()}: its shadow is left out of the bake, and Set Up Composite renders it "
+              "every frame." for m in moving.values()]
+    digest = shadows_hash(scene, height, samples, method, denoiser, frozenset(moving))
     if use_cache and record is not None and record.get("hash") == digest and \
             bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) is not None and \
             os.path.isfile(os.path.join(folder, engine.RATIO_FILE)):
         return {"seconds": 0.0, "folder": folder, "centre": record["centre"], "warnings": [], "reused": True}
-    centre = panorama_centre(cg)
+    centre = panorama_centre(still)
     depsgraph = context.evaluated_depsgraph_get()
     for ob in phantoms:
         if point_inside(ob, depsgraph, centre):
@@ -251,13 +269,15 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
                 state.set(slot, "material", mattes[matte_albedo(ob)])
         # Only the rows that see a phantom: under a floor's CG about half the panorama
         rows = engine.panorama_rows(centre, [world_box([ob]) for ob in phantoms], height)
-        # The CG shadows and lights the phantoms but is not seen; the catchers' paths also go on
-        # without it (CATCHER), or a second render does (TWO_RENDERS)
+        # The still CG shadows and lights the phantoms but is not seen; the catchers' paths also
+        # go on without it (CATCHER), or a second render does (TWO_RENDERS). The moving CG is not there.
+        moved = [ob for ob in cg if ob.name in moving]
         if method == "CATCHER":
-            caught = renderer.render(centre, camera_hidden=cg, catchers=phantoms, height=height, distance=True,
-                                     rows=rows)
+            caught = renderer.render(centre, hidden=moved, camera_hidden=still, catchers=phantoms,
+                                     height=height, distance=True, rows=rows)
         else:
-            lit_with = renderer.render(centre, camera_hidden=cg, height=height, distance=True, rows=rows)
+            lit_with = renderer.render(centre, hidden=moved, camera_hidden=still, height=height,
+                                       distance=True, rows=rows)
         distance, warnings = renderer.distance
         if method == "TWO_RENDERS":
             lit_without = renderer.render(centre, hidden=cg, height=height, rows=rows)
@@ -279,7 +299,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
 
 class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
     """Render the shot's CG shadows on the phantoms once, from above, for the Baked Shadows
-    composite (CG and phantoms must stand still; the camera may move)"""
+    composite (of the CG that stands still: a moving one's shadow is rendered every frame; the
+    phantoms must stand still, the camera may move)"""
 
     bl_idname = "platelight.bake_shadows"
     bl_label = "Bake Shadows"

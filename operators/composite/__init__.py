@@ -53,9 +53,9 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
     method: EnumProperty(
         name="Method",
         items=(
-            ("AUTO", "Automatic", "Baked Shadows when the shot's shadows are baked, still fit the "
-             "scene and nothing moves or deforms during the shot (the fastest route at equal error), "
-             "else Shadow Catcher"),
+            ("AUTO", "Automatic", "Baked Shadows when the shot's shadows are baked and still fit the "
+             "scene (the fastest route at equal error), a CG that moves or deforms getting its shadow "
+             "every frame from a shadow-catcher layer of its own; else Shadow Catcher"),
             ("CATCHER", "Shadow Catcher", "One render: phantoms are shadow catchers; the catcher pass "
              "is the with/without ratio (fast)"),
             ("LAYERED", "Layered Catcher", "Two renders: the CG alone at CG Samples (noise-free "
@@ -64,7 +64,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
              "without CG (additive or ratio form)"),
             ("BAKED", "Baked Shadows", "Two cheap renders: the CG at CG Samples, and the phantoms "
              "showing the shot's shadows baked once by Bake Shadows (a still CG on matte phantoms, "
-             "the camera free to move)"),
+             "the camera free to move; a moving CG left out of the bake adds a shadow-catcher layer)"),
         ),
         default="AUTO",
     )

@@ -6,6 +6,7 @@ from ...addon import names
 
 
 def collection(scene, name):
+    """The collection ``name`` (made if need be), linked to the scene."""
     coll = bpy.data.collections.get(name)
     if coll is None:
         coll = bpy.data.collections.new(name)
@@ -24,6 +25,13 @@ def move_into(objects, coll):
                 other.objects.unlink(ob)
 
 
+def unlink_if_empty(scene, name):
+    """Take our collection ``name`` out of the scene once a route no longer puts objects in it."""
+    coll = bpy.data.collections.get(name)
+    if coll is not None and not coll.all_objects and coll.name in scene.collection.children:
+        scene.collection.children.unlink(coll)
+
+
 def view_layer(scene, name):
     layer = scene.view_layers.get(name) or scene.view_layers.new(name)
     layer.use = True
@@ -37,14 +45,18 @@ def _layer_collection(layer, coll):
     raise RuntimeError(f"collection {coll.name} is not in view layer {layer.name}")
 
 
-def configure_layer(layer, cg_coll, phantom_coll, cg_state, phantom_holdout):
-    cg = _layer_collection(layer, cg_coll)
-    cg.exclude = cg_state == "excluded"
-    if not cg.exclude:
-        cg.indirect_only = cg_state == "indirect"
-        # EEVEE has no indirect-only: a held-out CG still casts its shadows there and the
-        # pixels it covers are the CG layer's anyway (alpha 1)
-        cg.holdout = cg_state == "holdout"
+def configure_layer(layer, cg_coll, phantom_coll, cg_state, phantom_holdout, moving=None):
+    """Show the CG collection in ``layer`` as ``cg_state`` ("visible", "indirect", "holdout" or
+    "excluded") and the phantoms held out or not; ``moving``: (the moving CG's collection, its
+    state), where the route keeps them apart."""
+    for coll, state in [(cg_coll, cg_state)] + ([moving] if moving else []):
+        cg = _layer_collection(layer, coll)
+        cg.exclude = state == "excluded"
+        if not cg.exclude:
+            cg.indirect_only = state == "indirect"
+            # EEVEE has no indirect-only: a held-out CG still casts its shadows there and the
+            # pixels it covers are the CG layer's anyway (alpha 1)
+            cg.holdout = state == "holdout"
     ph = _layer_collection(layer, phantom_coll)
     ph.exclude = False
     ph.holdout = phantom_holdout

@@ -1,4 +1,4 @@
-"""The composite's routes (CATCHER, LAYERED, DIFFERENTIAL, BAKED) as data, and the choice of one.
+"""The composite's routes (CATCHER, LAYERED, DIFFERENTIAL, BAKED, MIXED) as data, and the choice of one.
 
 A Route says only what differs between the routes; setup.py builds any of them by reading its
 fields. ``choose_route`` turns what was asked (method, engine) and what the scene holds (a shadow
@@ -28,6 +28,7 @@ class Route:
     shadows: str                    # the Shadows layer: NO_SHADOWS_LAYER, CATCHER_SHADOWS or BAKED_SHADOWS
     cg_samples: bool                # CG Samples set the CG layer's samples
     adaptive: bool                  # adaptive sampling allowed: no two renders are differenced
+    moving_shadows: bool = False    # a Shadow Catcher layer renders the moving CG's shadows every frame
 
     @property
     def local_scene(self) -> bool:
@@ -49,6 +50,11 @@ ROUTES = {route.name: route for route in (
     Route("BAKED", phantoms_catch=False, cg_catcher_pass=False, cg_holds_out_phantoms=True,
           filmed_phantoms=True, layers=frozenset({names.LAYER_CG, names.LAYER_SHADOWS}),
           shadows=BAKED_SHADOWS, cg_samples=True, adaptive=True),
+    # BAKED for the CG that stands still, times a catcher's ratio of the moving CG's shadows; the
+    # phantoms catch, so the baked layer reads its ratio from an AOV (a catcher renders transparent)
+    Route("MIXED", phantoms_catch=True, cg_catcher_pass=False, cg_holds_out_phantoms=True,
+          filmed_phantoms=True, layers=frozenset({names.LAYER_CG, names.LAYER_SHADOWS, names.LAYER_MOVING_SHADOWS}),
+          shadows=BAKED_SHADOWS, cg_samples=True, adaptive=True, moving_shadows=True),
 )}
 
 
@@ -58,15 +64,19 @@ class Choice:
     engine: str                     # scene.render.engine
     reports: tuple[tuple[str, str], ...]   # (level, sentence), in the order to report them
     current: bool | None            # does the bake fit the scene (None: not hashed, or no bake)
+    moving: frozenset[str] = frozenset()   # the CG whose shadows MIXED renders every frame
 
 
 def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
-                 motions: Callable[[], dict], is_current: Callable[[], bool | None]) -> Choice:
+                 motions: Callable[[], dict], is_current: Callable[[frozenset], bool | None],
+                 phantom_names=frozenset()) -> Choice:
     """The route and engine for ``method`` (AUTO or a route's name) and ``engine`` (CYCLES or
     EEVEE), given whether the shot's shadows are ``baked`` and the scene's ``motion_blur``.
-    ``motions`` ({name: Motion} of what moves) and ``is_current`` (does the bake fit the scene)
-    are called only where a bake could be used: both walk the scene. Raises PlateLightError,
-    having changed nothing, where what was asked cannot be done."""
+    ``motions`` ({name: Motion} of the CG and phantoms, ``phantom_names``, that move) and
+    ``is_current`` (does the bake fit the scene, given the names of the CG that moves) are called
+    only where a bake could be used: both walk the scene. A bake that left the moving CG out
+    serves the still CG (MIXED). Raises PlateLightError, having changed nothing, where what was
+    asked cannot be done."""
     if method == "BAKED" and not baked:
         raise PlateLightError("The Baked Shadows method needs the shot's shadows: run Bake "
                               "Shadows (platelight.bake_shadows) first.")
@@ -75,25 +85,35 @@ def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
                               "Motion Blur off (Render Properties) or use Cycles, which blurs both.")
     # a shadow baked once cannot follow what moves: asked only where a bake could be used
     moving = motions() if baked and method in ("AUTO", "BAKED") else {}
+    first = next(iter(moving.values()), None)
+    # a phantom that moves leaves no bake usable; moving CG, one baked without them
+    bakeable = not any(name in phantom_names for name in moving)
+    current = None
+    if baked and bakeable and method in ("AUTO", "BAKED") and (moving or method == "AUTO"):
+        current = is_current(frozenset(moving))
     if method == "BAKED" and moving:
-        raise PlateLightError(f"{next(iter(moving.values())).sentence()}, and the shadows baked "
-                              "once cannot follow it: use the Automatic or Shadow Catcher method.")
+        if not current:
+            if not bakeable:                # a moving phantom: no bake can serve
+                first = next(m for name, m in moving.items() if name in phantom_names)
+            again = "bake the shadows again (the bake leaves what moves out) or " if bakeable else ""
+            raise PlateLightError(f"{first.sentence()}, and the shadows baked with it cannot follow it: "
+                                  f"{again}use the Automatic or Shadow Catcher method.")
+        method = "MIXED"
 
     reports = []
-    current = None
     if method == "AUTO":
-        current = is_current() if baked and not moving else None
-        method = "BAKED" if current else "CATCHER"
-        if moving:
-            reports.append(("WARNING", f"{next(iter(moving.values())).sentence()}: the Shadow "
-                            "Catcher renders the shadows every frame instead of the baked ones."))
+        method = ("MIXED" if moving else "BAKED") if current else "CATCHER"
+        if moving and not current:
+            reports.append(("WARNING", f"{first.sentence()}: the Shadow Catcher renders the shadows "
+                            "every frame instead of the baked ones."))
     if engine == "EEVEE":
         if not eevee_available():
             reports.append(("WARNING", NO_GL_SENTENCE))
             engine = "CYCLES"
         else:
             engine = compat.EEVEE
-            # baked shadows are emission, which EEVEE renders exactly (docs/decisions.md); else three layers
+            # baked shadows are emission, which EEVEE renders exactly (docs/decisions.md); else three
+            # layers (EEVEE has no shadow catcher for a moving CG's shadows either)
             if method == "BAKED" and not compat.EEVEE_MATERIAL_OVERRIDE:
                 reports.append(("WARNING", "EEVEE in this Blender cannot show the baked shadows "
                                 "(it ignores a view layer's material override): it renders its own "
@@ -107,4 +127,6 @@ def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
         fallback = "EEVEE renders its own" if engine == compat.EEVEE else "the Shadow Catcher renders them"
         reports.append(("WARNING", "The baked shadows do not match the scene any more: "
                         f"{fallback} instead; run Bake Shadows again to use them."))
-    return Choice(ROUTES[method], engine, tuple(reports), current)
+    route = ROUTES[method]
+    return Choice(route, engine, tuple(reports), current,
+                  frozenset(moving) if route.moving_shadows else frozenset())

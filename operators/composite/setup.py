@@ -15,8 +15,9 @@ from ..bake.inputs import wants_sharp_probe
 from .. import motion
 from ..baked_shadows import baked_is_current
 from ..common import classify_objects, find_plate_image, set_plate_colour_management
+from ...node_groups.baked_shadow import ensure_ratio_aov
 from ..phantoms import apply_phantom_surfaces
-from .layers import collection, configure_eevee, configure_layer, move_into, view_layer
+from .layers import collection, configure_eevee, configure_layer, move_into, unlink_if_empty, view_layer
 from .routes import BAKED_SHADOWS, CATCHER_SHADOWS, NO_SHADOWS_LAYER, choose_route
 
 
@@ -74,7 +75,8 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
     choice = choose_route(method, engine, baked=baked is not None,
                           motion_blur=scene.render.use_motion_blur,
                           motions=lambda: motion.motions(scene, cg + phantoms),
-                          is_current=lambda: baked_is_current(scene))
+                          is_current=lambda moving: baked_is_current(scene, moving),
+                          phantom_names=frozenset(ob.name for ob in phantoms))
     route, engine = choice.route, choice.engine
     reports = list(choice.reports)
 
@@ -94,8 +96,18 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
     set_plate_colour_management(scene)
     cg_coll = collection(scene, names.CG_COLLECTION)
     phantom_coll = collection(scene, names.PHANTOM_COLLECTION)
-    move_into(cg, cg_coll)
+    moving_cg = [ob for ob in cg if ob.name in choice.moving]
+    move_into([ob for ob in cg if ob.name not in choice.moving], cg_coll)
     move_into(phantoms, phantom_coll)
+    moving_coll = None
+    if moving_cg:     # a collection of their own: their shadows have a layer of their own
+        moving_coll = collection(scene, names.MOVING_CG_COLLECTION)
+        move_into(moving_cg, moving_coll)
+    else:
+        unlink_if_empty(scene, names.MOVING_CG_COLLECTION)
+
+    def moving_as(state):
+        return (moving_coll, state) if moving_coll is not None else None
     for ob in cg:
         ob.is_shadow_catcher = False
         ob.is_holdout = False
@@ -104,13 +116,15 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
         ob.is_holdout = False
     apply_phantom_surfaces(scene, phantoms)   # the plate on the phantoms (or their own materials)
 
-    ours = {names.LAYER_CG, names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS}
+    ours = {names.LAYER_CG, names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS,
+            names.LAYER_MOVING_SHADOWS}
     for layer in scene.view_layers:
         if layer.name not in ours:
             layer.use = False
     cg_layer = view_layer(scene, names.LAYER_CG)
     cg_layer.cycles.use_pass_shadow_catcher = route.cg_catcher_pass
-    configure_layer(cg_layer, cg_coll, phantom_coll, "visible", route.cg_holds_out_phantoms)
+    configure_layer(cg_layer, cg_coll, phantom_coll, "visible", route.cg_holds_out_phantoms,
+                    moving_as("visible"))
     # no noise from path-tracing what the camera filmed (node_groups/phantom_plate.py)
     cg_layer[names.FILMED_PHANTOMS_KEY] = 1.0 if route.filmed_phantoms else 0.0
     clamped = ""
@@ -133,8 +147,21 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
         else:   # the phantoms emit the baked, noise-free ratio: the samples anti-alias its edges
             shadows.samples = baked_samples
             shadows.material_override = baked
-            configure_layer(shadows, cg_coll, phantom_coll, "excluded", False)
-    for name in (names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS):
+            configure_layer(shadows, cg_coll, phantom_coll, "excluded", False, moving_as("excluded"))
+            if route.phantoms_catch:   # a catcher renders transparent: the ratio comes by its AOV
+                ensure_ratio_aov(baked)
+                if names.BAKED_RATIO_AOV not in shadows.aovs:
+                    aov = shadows.aovs.add()
+                    aov.name, aov.type = names.BAKED_RATIO_AOV, "COLOR"
+    if route.moving_shadows:
+        # the moving CG's shadows, every frame: phantoms catch them, the still CG's are baked
+        moving_layer = view_layer(scene, names.LAYER_MOVING_SHADOWS)
+        moving_layer.cycles.use_pass_shadow_catcher = True
+        moving_layer.samples = 0
+        moving_layer.material_override = None
+        configure_layer(moving_layer, cg_coll, phantom_coll, "excluded", False, moving_as("indirect"))
+        moving_layer[names.FILMED_PHANTOMS_KEY] = 0.0
+    for name in (names.LAYER_LOCAL, names.LAYER_WITHOUT, names.LAYER_SHADOWS, names.LAYER_MOVING_SHADOWS):
         if name in scene.view_layers and name not in route.layers:
             scene.view_layers[name].use = False
     if engine == compat.EEVEE and route.local_scene:
@@ -162,6 +189,8 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
                         "for real surfaces as Phantom)."))
     else:
         layer = f", the CG at {layer_samples} samples" if route.cg_samples else ""
+        if moving_cg:
+            layer += f"; the shadows of {len(moving_cg)} moving CG object(s) rendered every frame"
         reports.append(("INFO", f"Composite set up ({route.name.lower()}, {engine.lower()}): "
                         f"{len(cg)} CG object(s) ({len(noisy)} path-traced or with a sharp "
                         f"reflection{layer}), {len(phantoms)} phantom(s), plate '{plate_image.name}'{clamped}."))

@@ -458,6 +458,21 @@ def test_a_mirror_sees_the_filmed_floor_shadowed_and_without_noise(bpy_clean, tm
     assert 0.9 < np.median(reflectance) < 1.05 and np.percentile(reflectance, 5) > 0.85
     assert abs(np.median(agreement) - 1) < 0.03 and np.percentile(np.abs(agreement - 1), 90) < 0.1
 
+    # a CG that moves far off makes the floor a shadow catcher (its shadow every frame): the
+    # mirror still sees the floor as filmed, shadowed as before
+    far = cs.add_sphere(bpy, scene, location=(30.0, 30.0, 1.0), radius=R, name="Far")
+    scene.frame_start, scene.frame_end = 1, 8
+    for frame, x in ((1, 30.0), (8, 32.0)):
+        far.location.x = x
+        far.keyframe_insert("location", frame=frame)
+    scene.frame_set(1)
+    cg_layer[names.FILMED_PHANTOMS_KEY] = 1.0
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(cg_samples=1, denoise_shadows=False) == {"FINISHED"}
+    assert "(mixed, cycles)" in capfd.readouterr().out and _floor.is_shadow_catcher
+    mixed = cg(1, "f")
+    assert np.percentile(np.abs(mixed[shadowed] / one[shadowed] - 1), 90) < 0.02
+
 
 def test_the_bake_bounces_the_cg_s_light_off_the_phantoms_at_their_filmed_albedo(bpy_clean, tmp_path):
     """A white ball over a floor filmed dark, then bright: the bake renders the floor at the

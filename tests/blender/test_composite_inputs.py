@@ -107,17 +107,17 @@ def test_setup_composite_as_a_function(bpy_clean, tmp_path):
 def test_choose_route_asks_for_the_scene_only_where_a_bake_could_serve(bpy_module):
     routes, errors = _ext("operators.composite.routes"), _ext("addon.errors")
 
-    def never():
+    def never(*_moving):
         raise AssertionError("asked without a bake to use")
 
     choice = routes.choose_route("AUTO", "CYCLES", baked=False, motion_blur=False, motions=never,
                                  is_current=never)
     assert (choice.route.name, choice.engine, choice.reports, choice.current) == ("CATCHER", "CYCLES", (), None)
     choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=dict,
-                                 is_current=lambda: True)
-    assert (choice.route.name, choice.reports, choice.current) == ("BAKED", (), True)
+                                 is_current=lambda moving: moving == frozenset())
+    assert (choice.route.name, choice.reports, choice.current, choice.moving) == ("BAKED", (), True, frozenset())
     choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=dict,
-                                 is_current=lambda: False)
+                                 is_current=lambda moving: False)
     assert choice.route.name == "CATCHER" and choice.current is False
     assert choice.reports == (("WARNING", "The baked shadows do not match the scene any more: the Shadow "
                                "Catcher renders them instead; run Bake Shadows again to use them."),)
@@ -126,6 +126,24 @@ def test_choose_route_asks_for_the_scene_only_where_a_bake_could_serve(bpy_modul
     assert (choice.route.name, choice.current) == ("BAKED", None)
     with pytest.raises(errors.PlateLightError, match="Motion Blur off"):
         routes.choose_route("CATCHER", "EEVEE", baked=False, motion_blur=True, motions=never, is_current=never)
+
+    # a moving CG: a bake that left it out serves the rest (MIXED), by name too; one that holds it does not
+    rolling = {"Ball": _ext("operators.motion").Motion("Ball", "moves", 2)}
+    for method in ("AUTO", "BAKED"):
+        choice = routes.choose_route(method, "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
+                                     is_current=lambda moving: moving == {"Ball"}, phantom_names={"Floor"})
+        assert (choice.route.name, choice.reports, choice.moving) == ("MIXED", (), frozenset({"Ball"}))
+    choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
+                                 is_current=lambda moving: False, phantom_names={"Floor"})
+    assert choice.route.name == "CATCHER" and choice.moving == frozenset()
+    assert "'Ball' moves during the shot (from frame 2): the Shadow Catcher renders" in choice.reports[0][1]
+    with pytest.raises(errors.PlateLightError, match="baked with it cannot follow it: bake the shadows again"):
+        routes.choose_route("BAKED", "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
+                            is_current=lambda moving: False, phantom_names={"Floor"})
+    # a moving phantom leaves no bake usable: not even asked
+    choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
+                                 is_current=never, phantom_names={"Ball"})
+    assert (choice.route.name, choice.current) == ("CATCHER", None)
 
 
 def test_no_phantoms_still_composites_and_says_so(bpy_clean, tmp_path, capfd):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import composite_scene as cs
-from test_baked_shadows import CENTRE, R, analytic_ratio, floating_black_ball
+from test_baked_shadows import CENTRE, HEIGHT, R, analytic_ratio, floating_black_ball
 
 FRAMES = (1, 8)
 
@@ -168,3 +168,65 @@ def test_moving_cg_refuses_a_bake_and_eevee_motion_blur_in_one_sentence(bpy_clea
     # Cycles blurs the CG and the shadow catcher's pass together
     assert bpy.ops.platelight.setup_composite() == {"FINISHED"}
     assert floor.is_shadow_catcher
+
+
+STILL, ROLL_FROM, ROLL_TO = np.array([-1.2, 0.0, HEIGHT]), np.array([1.2, -1.0, HEIGHT]), np.array([1.2, 1.0, HEIGHT])
+
+
+def test_a_still_ball_keeps_its_baked_shadow_while_a_moving_one_gets_each_frames(bpy_clean, tmp_path, capfd):
+    from bake_scenes import probe_renders
+    from platelight.operators import baked_shadows
+
+    bpy = bpy_clean
+    scene, floor, still = floating_black_ball(bpy, tmp_path, save=False)
+    still.location = tuple(STILL)
+    rolling = cs.add_sphere(bpy, scene, location=tuple(ROLL_FROM), radius=R, name="Rolling")
+    rolling.data.materials.append(still.data.materials[0])
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    scene.frame_start, scene.frame_end = FRAMES       # the still plate held over the shot
+    keyed(rolling, "location", [tuple(ROLL_FROM), tuple(ROLL_TO)])
+    scene.frame_set(FRAMES[0])
+    capfd.readouterr()
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8) == {"FINISHED"}
+    assert "'Rolling' moves during the shot (from frame 2): its shadow is left out of the bake" in \
+        capfd.readouterr().out
+    # the bake does not depend on where the moving ball is: still current on the last frame
+    scene.frame_set(FRAMES[1])
+    assert baked_shadows.baked_is_current(scene)
+    renders = probe_renders()
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8) == {"FINISHED"}
+    assert probe_renders() == renders
+
+    assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert "(mixed, cycles)" in said and "the shadows of 1 moving CG object(s) rendered every frame" in said
+    assert "WARNING" not in said
+    used = {layer.name for layer in scene.view_layers if layer.use}
+    assert used == {"PlateLight CG", "PlateLight Shadows", "PlateLight Moving Shadows"}, used
+    assert [ob.name for ob in bpy.data.collections["PlateLight Moving CG"].objects] == ["Rolling"]
+
+    _image, passes = cs.render_with_passes(bpy, scene, tmp_path / "out")
+    ground, origin, rays = cs.ground_points(bpy, scene)
+    rolled = np.array(rolling.matrix_world.translation)
+    assert np.allclose(rolled, ROLL_TO)
+    visible = np.isfinite(ground).all(axis=-1)
+    for centre in (STILL, rolled, ROLL_FROM):
+        visible &= ~cs.sphere_hit(origin, rays, centre, R, margin=0.05)
+    ratio = passes["Shadows"][..., :3].mean(axis=-1)
+    expected = analytic_ratio(ground, STILL) * analytic_ratio(ground, rolled)
+    plate = cs.read_exr(tmp_path / "plate.exr", "RGB").mean(axis=-1)
+    for centre in (STILL, rolled):
+        near = visible & (np.linalg.norm(ground[..., :2] - centre[:2], axis=-1) < 1.5)
+        assert near.sum() > 200
+        error = np.abs(ratio[near] - expected[near])
+        assert np.median(error) < 0.02, (centre, np.median(error))
+        # contact darkening: the darkest point under each ball
+        assert abs(float(np.percentile(ratio[near], 1)) - float(np.percentile(expected[near], 1))) < 0.05
+        mse = np.mean((plate[near] * (ratio[near] - expected[near])) ** 2)
+        assert 10 * np.log10(plate.max() ** 2 / mse) >= 35
+    # where the rolling ball was on frame 1 the floor is lit again (no stale shadow)
+    was = visible & (np.linalg.norm(ground[..., :2] - ROLL_FROM[:2], axis=-1) < 0.6)
+    assert was.sum() > 20
+    stale = analytic_ratio(ground, STILL) * analytic_ratio(ground, ROLL_FROM)
+    assert np.median(np.abs(ratio[was] - expected[was])) < 0.25 * np.median(np.abs(stale[was] - expected[was]))
