@@ -17,7 +17,7 @@ PYTEST_ARGS ?=
 # The suite runs in this many processes (pytest-xdist); each test has its own profile and folder.
 TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
-.PHONY: venv test test-fast demo bench bench-960 bench-1080 bench-gpu bench-shot bench-shot-gpu dist validate clean
+.PHONY: venv test test-fast demo bench bench-960 bench-1080 bench-gpu bench-shot bench-motion bench-shot-gpu dist validate clean
 
 venv: $(STAMP)
 
@@ -61,6 +61,9 @@ bench-gpu: venv
 # of truths per scene at 960x540 on 2 cores, cached in bench_out/shot/)
 bench-shot: venv
 	PLATELIGHT_BENCH_SIZE=$${PLATELIGHT_BENCH_SIZE:-960x540} $(PY) tests/bench/bench_shot.py
+
+bench-motion: venv
+	PLATELIGHT_BENCH_NAME=motion PLATELIGHT_BENCH_SIZE=$${PLATELIGHT_BENCH_SIZE:-960x540} $(PY) tests/bench/bench_shot.py
 
 bench-shot-gpu: venv
 	PLATELIGHT_BENCH_DEVICE=GPU PLATELIGHT_BENCH_SIZE=$${PLATELIGHT_BENCH_SIZE:-960x540} $(PY) tests/bench/bench_shot.py

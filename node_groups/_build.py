@@ -177,3 +177,14 @@ def strength_against_film_exposure(strength_socket, scene):
     variable.targets[0].id = scene
     variable.targets[0].data_path = "cycles.film_exposure"
     driver.expression = "1 / max(exposure, 1e-6)"     # a simple expression: no Python needed
+
+
+def action_fcurves(idblock) -> list:
+    """The F-curves of ``idblock``'s action (its slot's channel bag; 4.4 on keep actions in slots)."""
+    from bpy_extras import anim_utils
+
+    animation = idblock.animation_data
+    if animation is None or animation.action is None:
+        return []
+    channelbag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    return list(channelbag.fcurves) if channelbag is not None else []

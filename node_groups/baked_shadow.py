@@ -14,7 +14,9 @@ import bpy
 
 from .. import compat
 from ..addon import names
-from ._build import Graph, io_nodes, shader_group, strength_against_film_exposure, sync_interface
+from ._build import (Graph, action_fcurves, io_nodes, shader_group, strength_against_film_exposure,
+                     sync_interface)
+from .probe_maps import SEQUENCE_FRAMES
 
 # A point counts as the one the panorama saw when it lies no farther than this beyond the
 # distance stored for its direction (relative, plus an absolute 1 cm for texels at the horizon).
@@ -28,14 +30,19 @@ def seen_at(g, distance, stored):
     return g.math("LESS_THAN", distance, g.math("MULTIPLY_ADD", stored, 1.0 + SEEN_TOLERANCE, SEEN_SLACK))
 
 
-def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None = None, centre=None):
+def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None = None, centre=None,
+                      moving: dict | None = None):
     """The group (made or rebuilt in place, so materials using it follow a new bake) whose output
     *Ratio* is 1 + (baked ratio − 1) at the shading point, read from ``ratio_path`` (ratio − 1, RGB)
     and ``distance_path`` (radial distances), both panoramas centred at ``centre``; without a bake
-    (no paths), 1 everywhere. A bake rebuilds it; ``ensure_ratio_group`` gives the one there is."""
+    (no paths), 1 everywhere. ``moving`` (a moving CG's shadows baked per frame: "ratio" and
+    "distance", the first files of their sequences, and "centres", {frame: centre}): times that
+    frame's ratio, read the same way from that frame's centre. A bake rebuilds it;
+    ``ensure_ratio_group`` gives the one there is."""
     tree = shader_group(names.BAKED_RATIO_GROUP)
     sync_interface(tree, [("OUTPUT", "Ratio", "NodeSocketColor", {})])
     tree.nodes.clear()
+    tree.animation_data_clear()         # a per-frame bake's keyed centres
     g = Graph(tree)
     _gin, gout = io_nodes(g)
     if ratio_path is None:
@@ -43,18 +50,39 @@ def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None =
         one.outputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
         g.link(one.outputs["Color"], gout.inputs["Ratio"])
         return tree
-    position = g.node("ShaderNodeNewGeometry").outputs["Position"]
     origin = g.node("ShaderNodeCombineXYZ")
     origin.name = origin.label = "Panorama Centre"
     for axis, value in zip("XYZ", centre):
         origin.inputs[axis].default_value = float(value)
-    offset = g.vmath("SUBTRACT", position, origin.outputs["Vector"])
+    ratio = _panorama_ratio(g, ratio_path, distance_path, origin.outputs["Vector"], sequence=False)
+    if moving:
+        origin = g.node("ShaderNodeCombineXYZ")
+        origin.name = origin.label = "Moving Panorama Centre"
+        _key_per_frame(tree, origin, moving["centres"])
+        moving_ratio = _panorama_ratio(g, moving["ratio"], moving["distance"], origin.outputs["Vector"],
+                                       sequence=True)
+        # where both shadows fall, the light left is the product of what each leaves
+        ratio = g.vmath("MULTIPLY", ratio, moving_ratio)
+    g.link(ratio, gout.inputs["Ratio"])
+    return tree
+
+
+def _panorama_ratio(g, ratio_path, distance_path, origin, sequence):
+    """1 + (ratio − 1) looked up from ``origin`` in the panoramas (image sequences: the scene
+    frame F reads file F), where the distance panorama saw the shading point; else 1."""
+    offset = g.vmath("SUBTRACT", g.node("ShaderNodeNewGeometry").outputs["Position"], origin)
 
     def panorama(path, interpolation):
         node = g.node("ShaderNodeTexEnvironment", interpolation=interpolation)
         node.image = bpy.data.images.load(path, check_existing=True)
+        node.image.source = "SEQUENCE" if sequence else "FILE"
         node.image.reload()
         node.image.colorspace_settings.name = "Non-Color"
+        if sequence:
+            user = node.image_user
+            user.frame_start, user.frame_offset = 1, 0
+            user.frame_duration = SEQUENCE_FRAMES
+            user.use_auto_refresh = True
         g.link(offset, node.inputs["Vector"])
         return node.outputs["Color"]
 
@@ -63,8 +91,19 @@ def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None =
     g.link(panorama(distance_path, "Closest"), stored.inputs["Color"])
     seen = seen_at(g, g.vmath("LENGTH", offset), stored.outputs["Red"])
     change = g.vmath("SCALE", ratio_minus_one, scale=seen)
-    g.link(g.vmath("ADD", change, (1.0, 1.0, 1.0)), gout.inputs["Ratio"])
-    return tree
+    return g.vmath("ADD", change, (1.0, 1.0, 1.0))
+
+
+def _key_per_frame(tree, node, values):
+    """Key ``node``'s X, Y and Z inputs to ``values`` ({frame: (x, y, z)}), held constant between
+    frames as the per-frame panoramas are."""
+    for frame, value in sorted(values.items()):
+        for axis, v in zip("XYZ", value):
+            node.inputs[axis].default_value = float(v)
+            node.inputs[axis].keyframe_insert("default_value", frame=frame)
+    for curve in action_fcurves(tree):
+        for point in curve.keyframe_points:
+            point.interpolation = "CONSTANT"
 
 
 def ensure_ratio_group():
@@ -74,11 +113,11 @@ def ensure_ratio_group():
     return bpy.data.node_groups.get(names.BAKED_RATIO_GROUP) or baked_ratio_group()
 
 
-def baked_shadow_material(ratio_path: str, distance_path: str, centre) -> bpy.types.Material:
+def baked_shadow_material(ratio_path: str, distance_path: str, centre, moving=None) -> bpy.types.Material:
     """The override material (made or rebuilt in place): it emits the baked ratio group's *Ratio*
     and writes it to the AOV names.BAKED_RATIO_AOV, the group rebuilt for ``ratio_path``,
-    ``distance_path`` and ``centre``."""
-    group = baked_ratio_group(ratio_path, distance_path, centre)
+    ``distance_path``, ``centre`` and ``moving`` (baked_ratio_group)."""
+    group = baked_ratio_group(ratio_path, distance_path, centre, moving)
     material = bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) or compat.new_material(names.BAKED_SHADOW_MATERIAL)
     tree = compat.shader_tree(material)
     tree.nodes.clear()

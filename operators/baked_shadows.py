@@ -53,20 +53,21 @@ def shadows_folder(scene) -> str:
     return os.path.normpath(bpy.path.abspath(maps_dir.rstrip("/\\") + "/" + names.SHADOWS_FOLDER))
 
 
-def moving_cg(scene, cg, phantoms) -> dict:
-    """{name: Motion} of the CG objects that move or deform over the shot: the bake leaves their
-    shadows out (Set Up Composite renders them every frame). Raises where nothing can be baked:
-    a phantom that moves (the bake is a picture of the phantoms), or no CG that stands still."""
+def moving_cg(scene, cg, phantoms, per_frame) -> dict:
+    """{name: Motion} of the CG objects that move or deform over the shot: the bake of the still
+    CG leaves them out (their shadows are baked ``per_frame``, else rendered every frame by Set Up
+    Composite). Raises where nothing can be baked: a phantom that moves (the bake is a picture of
+    the phantoms), or, not baking per frame, no CG that stands still."""
     moving = motion.motions(scene, cg + phantoms)
     phantom_names = {ob.name for ob in phantoms}
     moved_phantoms = [m for name, m in moving.items() if name in phantom_names]
-    if moved_phantoms or len(moving) == len(cg):
+    if moved_phantoms or (len(moving) == len(cg) and not per_frame):
         first = (moved_phantoms or list(moving.values()))[0]
         more = len(moving) - 1
+        need = "phantoms" if moved_phantoms else "at least one CG object (or Moving CG: Baked Every Frame)"
         raise PlateLightError(f"{first.sentence()}{f' (and {more} more)' if more else ''}: baked "
-                              "shadows need phantoms and at least one CG object that stand still; "
-                              "Set Up Composite's Automatic method path-traces the shadows every "
-                              "frame instead.")
+                              f"shadows need {need} that stand still; Set Up Composite's Automatic "
+                              "method path-traces the shadows every frame instead.")
     return moving
 
 
@@ -110,10 +111,12 @@ def _matte(albedo):
     return material
 
 
-def shadows_hash(scene, height, samples, method, denoiser, moving=frozenset()) -> str:
+def shadows_hash(scene, height, samples, method, denoiser, moving=frozenset(), moving_height=0) -> str:
     """The content hash of what the shadow panorama depends on: the world, every renderable
     object (place, shape, materials, visibility) but the ``moving`` CG (names: the bake leaves
-    them out, so only which they are counts), the bake's settings and Cycles' bounces. A
+    them out, so only which they are counts; ``moving_height`` rows: their shadows are baked at
+    each frame of the scene's range, so their place and shape there count too), the bake's settings and
+    Cycles' bounces. A
     phantom's materials are left out: the method assumes matte phantoms, whose albedo cancels in
     the ratio but for the light the CG sends back, so each phantom's matte albedo (matte_albedo)
     stands in for them; the plate-albedo material is remade at every composite set-up. The bake hides
@@ -139,7 +142,29 @@ def shadows_hash(scene, height, samples, method, denoiser, moving=frozenset()) -
                  "render": render_key(cycles, bake_diffuse_bounces(cycles))}
     if moving:              # absent when nothing moves: the hash of a still shot's bake is kept
         described["moving"] = sorted(moving)
+    if moving and moving_height:
+        described["moving_frames"] = _moving_digests(scene, describer, moving)
+        described["moving_height"] = int(moving_height)
     return content_hash(described)
+
+
+def _moving_digests(scene, describer, moving):
+    """Per frame of the scene's range, the moving CG's digests there (the scene's frame kept)."""
+    frame0, subframe0 = scene.frame_current, scene.frame_subframe
+    try:
+        described = []
+        for frame in moving_frames(scene):
+            scene.frame_set(frame)
+            described.append([frame] + [describer.seen_digest(scene.objects[name], frame)
+                                        for name in sorted(moving)])
+    finally:
+        scene.frame_set(frame0, subframe=subframe0)
+    return described
+
+
+def moving_frames(scene) -> list[int]:
+    """The frames a moving CG's shadows are baked at: every frame of the scene's range."""
+    return list(range(scene.frame_start, scene.frame_end + 1))
 
 
 # The bake's diffuse bounces at most: colour bleeding needs 2, and more biases the catcher's ratio
@@ -172,7 +197,22 @@ def baked_is_current(scene, moving=None) -> bool | None:
         moving = motion.motions(scene, cg + phantoms)
     return record.get("hash") == shadows_hash(scene, record.get("height", 0), record.get("samples", 0),
                                               record.get("method", ""), recorded_denoiser(record),
-                                              frozenset(moving))
+                                              frozenset(moving), per_frame_height(record))
+
+
+def per_frame_height(record) -> int:
+    """The rows of the moving CG's panoramas where the bake ``record`` describes baked them at
+    every frame, else 0."""
+    moving = (record or {}).get("moving") or {}
+    return int(moving.get("height") or DEFAULT_MOVING_HEIGHT) if moving.get("mode") == "PER_FRAME" else 0
+
+
+def moving_baked(scene) -> bool:
+    """Are the shot's baked shadows those of every frame for the CG that moves (no catcher needed)?"""
+    try:
+        return per_frame_height(engine.read_record(shadows_folder(scene))) > 0
+    except PlateLightError:
+        return False
 
 
 DEFAULT_HEIGHT, DEFAULT_SAMPLES = 512, 16
@@ -192,11 +232,14 @@ CATCHER_MIN_SAMPLES = 4
 
 
 def bake_shadows(context, height: int | None = None, samples: int | None = None,
-                 use_cache: bool = True, method: str | None = None, denoiser: str | None = None) -> dict:
+                 use_cache: bool = True, method: str | None = None, denoiser: str | None = None,
+                 moving_shadows: str | None = None, moving_height: int | None = None) -> dict:
     """Bake the shot's shadow panorama and (re)build the override material; returns a summary
     (``reused``: the bake on disk was current and nothing was rendered). ``height``/``samples``/
-    ``method`` (METHODS)/``denoiser`` (DENOISERS) None: those of the bake on disk (a farm's re-bake keeps the artist's),
-    else the defaults."""
+    ``method`` (METHODS)/``denoiser`` (DENOISERS)/``moving_shadows`` (MOVING_SHADOWS: a moving CG's
+    shadows baked per frame or left to a catcher)/``moving_height`` (the rows of its per-frame
+    panoramas) None: those of the bake on disk (a farm's
+    re-bake keeps the artist's), else the defaults."""
     scene = context.scene
     if scene.world is None:
         raise PlateLightError("The scene has no world; add one (its environment lights the phantoms) "
@@ -208,13 +251,19 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         raise PlateLightError("There are no phantoms to catch the shadows: mark the stand-ins for "
                               "real surfaces as Phantom.")
     folder = shadows_folder(scene)
-    moving = moving_cg(scene, cg, phantoms)
-    still = [ob for ob in cg if ob.name not in moving]
-    apply_phantom_surfaces(scene, phantoms)     # as the composite will show them (hash and render)
     record = engine.read_record(folder)
     height = int(height or (record or {}).get("height") or DEFAULT_HEIGHT)
     samples = int(samples or (record or {}).get("samples") or DEFAULT_SAMPLES)
     method = method or (record or {}).get("method") or DEFAULT_METHOD
+    kept_moving = ((record or {}).get("moving") or {}).get("mode")
+    moving_shadows = moving_shadows or kept_moving or DEFAULT_MOVING_SHADOWS
+    moving_height = int(moving_height or per_frame_height(record) or DEFAULT_MOVING_HEIGHT)
+    if moving_shadows not in {m[0] for m in MOVING_SHADOWS}:
+        raise PlateLightError(f"Unknown way {moving_shadows!r} for a moving CG's shadows: one of "
+                              f"{', '.join(m[0] for m in MOVING_SHADOWS)}.")
+    moving = moving_cg(scene, cg, phantoms, moving_shadows == "PER_FRAME")
+    still = [ob for ob in cg if ob.name not in moving]
+    apply_phantom_surfaces(scene, phantoms)     # as the composite will show them (hash and render)
     if method not in {m[0] for m in METHODS}:
         raise PlateLightError(f"Unknown shadow bake method {method!r}: one of {', '.join(m[0] for m in METHODS)}.")
     kept = recorded_denoiser(record) if record and record.get("method") == "CATCHER" else None
@@ -232,20 +281,27 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         denoiser = "CYCLES"
         notes.append("This Blender's compositor cannot denoise (no OpenImageDenoise): Cycles denoised "
                      "the shadow bake.")
-    notes += [f"{m.sentence()}: its shadow is left out of the bake, and Set Up Composite renders it "
-              "every frame." for m in moving.values()]
-    digest = shadows_hash(scene, height, samples, method, denoiser, frozenset(moving))
+    per_frame = bool(moving) and moving_shadows == "PER_FRAME"
+    frames = moving_frames(scene) if per_frame else []
+    if per_frame and len(frames) > MOST_MOVING_FRAMES:
+        raise PlateLightError(f"The shot is {len(frames)} frames long: baking a moving CG's shadows at "
+                              f"more than {MOST_MOVING_FRAMES} frames is refused; shorten the frame "
+                              "range or let the Shadow Catcher render them (Moving CG: Shadow Catcher).")
+    elsewhere = ("it is baked at each of the shot's frames" if per_frame else
+                 "Set Up Composite renders it every frame")
+    notes += [f"{m.sentence()}: its shadow is left out of the bake of the still CG, and {elsewhere}."
+              for m in moving.values()]
+    digest = shadows_hash(scene, height, samples, method, denoiser, frozenset(moving),
+                          moving_height if per_frame else 0)
     if use_cache and record is not None and record.get("hash") == digest and \
             bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) is not None and \
             os.path.isfile(os.path.join(folder, engine.RATIO_FILE)):
         return {"seconds": 0.0, "folder": folder, "centre": record["centre"], "warnings": [], "reused": True}
-    centre = panorama_centre(still)
-    depsgraph = context.evaluated_depsgraph_get()
-    for ob in phantoms:
-        if point_inside(ob, depsgraph, centre):
-            raise PlateLightError(f"The point above the CG lies inside '{ob.name}', so the shadows "
-                                  "cannot be seen from there; set up the composite with the Shadow Catcher "
-                                  "method instead of baked shadows.")
+    moved = [ob for ob in cg if ob.name in moving]
+    # every CG moving, the still panorama is of nothing: looked up from above the first frame's CG
+    centre = panorama_centre(still or moved)
+    if still:
+        check_outside(context, phantoms, centre)
     if record is not None:                      # a bake stopped halfway is never taken as current
         os.remove(os.path.join(folder, engine.RECORD_FILE))
     t0 = time.perf_counter()
@@ -256,6 +312,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     renderer = ProbeRenderer(context, state, None, denoise=True, samples=samples, view_layer=layer,
                              catcher_denoiser=denoiser)
     mattes = {albedo: _matte(albedo) for albedo in {matte_albedo(ob) for ob in phantoms}}
+    frame0, subframe0 = scene.frame_current, scene.frame_subframe
+    centres, warnings = [], []
     try:
         for other in scene.view_layers:
             if other != layer and other.use:
@@ -267,34 +325,94 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         for ob in phantoms:
             for slot in ob.material_slots:
                 state.set(slot, "material", mattes[matte_albedo(ob)])
-        # Only the rows that see a phantom: under a floor's CG about half the panorama
-        rows = engine.panorama_rows(centre, [world_box([ob]) for ob in phantoms], height)
-        # The still CG shadows and lights the phantoms but is not seen; the catchers' paths also
-        # go on without it (CATCHER), or a second render does (TWO_RENDERS). The moving CG is not there.
-        moved = [ob for ob in cg if ob.name in moving]
-        if method == "CATCHER":
-            caught = renderer.render(centre, hidden=moved, camera_hidden=still, catchers=phantoms,
-                                     height=height, distance=True, rows=rows)
+        boxes = [world_box([ob]) for ob in phantoms]
+        # The still CG's shadows, the moving CG not there (none: no change anywhere, nothing rendered)
+        if still:
+            ratio, distance, said = _render_ratio(renderer, method, centre, moved, still, phantoms, boxes, height)
+            warnings += said
         else:
-            lit_with = renderer.render(centre, hidden=moved, camera_hidden=still, height=height,
-                                       distance=True, rows=rows)
-        distance, warnings = renderer.distance
-        if method == "TWO_RENDERS":
-            lit_without = renderer.render(centre, hidden=cg, height=height, rows=rows)
+            ratio, distance = np.ones((2, 4, 3)), np.full((2, 4), distance_maps.FAR, np.float32)
+        distance_path = distance_maps.write_distance(folder, distance)
+        ratio_path = engine.write_ratio(folder, engine.ratio_to_texture(ratio))
+        # Each frame's moving CG's shadows from above it, the still CG not there (theirs are above)
+        moving_folder = os.path.join(folder, engine.MOVING_FOLDER)
+        wm = context.window_manager
+        wm.progress_begin(0, max(1, len(frames)))
+        for done, frame in enumerate(frames):
+            scene.frame_set(frame)
+            centres.append(panorama_centre(moved))
+            check_outside(context, phantoms, centres[-1])
+            ratio, distance, said = _render_ratio(renderer, method, centres[-1], still, moved, phantoms,
+                                                  boxes, moving_height)
+            warnings += [f"Frame {frame}: {w}" for w in said]
+            distance_maps.write_distance(moving_folder, distance, frame)
+            engine.write_ratio(moving_folder, engine.ratio_to_texture(ratio), frame)
+            wm.progress_update(done + 1)
+        wm.progress_end()
     finally:
+        scene.frame_set(frame0, subframe=subframe0)
         errors = state.restore()
         renderer.end()
         for material in mattes.values():
             bpy.data.materials.remove(material)
         scene.view_layers.remove(layer)
-    ratio = (engine.catcher_ratio(caught, rows) if method == "CATCHER"
-             else engine.shadow_ratio(lit_with, lit_without))
-    distance_path = distance_maps.write_distance(folder, distance)
-    ratio_path = engine.write_baked(folder, engine.ratio_to_texture(ratio), centre, height, samples, digest,
-                                    method, denoiser)
-    baked_shadow_material(ratio_path, distance_path, centre)
+    per_frame_record = {"names": sorted(moving), "mode": "PER_FRAME" if per_frame else "CATCHER",
+                        "height": moving_height if per_frame else 0, "frames": frames, "centres": [[float(v) for v in c] for c in centres]}
+    engine.write_record(folder, centre, height, samples, digest, method, denoiser,
+                        per_frame_record if moving else None)
+    baked_shadow_material(ratio_path, distance_path, centre,
+                          moving_maps(folder, frames, centres) if per_frame else None)
     return {"seconds": time.perf_counter() - t0, "folder": folder, "centre": centre,
-            "warnings": notes + list(warnings) + list(errors or []), "reused": False}
+            "warnings": notes + warnings + list(errors or []), "reused": False}
+
+
+# A moving CG's shadows baked at more frames than this is refused (the catcher renders them)
+MOST_MOVING_FRAMES = 10_000
+MOVING_SHADOWS = (("PER_FRAME", "Baked Every Frame", "A panorama of the moving CG's shadows from above it "
+                   "at each frame of the shot, looked up as the still CG's are"),
+                  ("CATCHER", "Shadow Catcher", "Set Up Composite renders the moving CG's shadows every "
+                   "frame in a shadow-catcher layer of their own"))
+DEFAULT_MOVING_SHADOWS = "PER_FRAME"
+# A moving CG's per-frame panoramas: fewer rows than the still bake's, as it is paid every frame
+# (docs/bench/motion_320x180.md publishes both)
+DEFAULT_MOVING_HEIGHT = 256
+
+
+def check_outside(context, phantoms, centre):
+    """Raise where the panorama's centre lies inside a phantom (it would see nothing)."""
+    depsgraph = context.evaluated_depsgraph_get()
+    for ob in phantoms:
+        if point_inside(ob, depsgraph, centre):
+            raise PlateLightError(f"The point above the CG lies inside '{ob.name}', so the shadows "
+                                  "cannot be seen from there; set up the composite with the Shadow Catcher "
+                                  "method instead of baked shadows.")
+
+
+def _render_ratio(renderer, method, centre, hidden, casting, phantoms, boxes, height):
+    """(ratio, distance, warnings) of the panorama from ``centre``: the ``casting`` CG there but
+    unseen by camera rays (it shadows and lights the phantoms), the ``hidden`` CG not there. The
+    catchers' paths also go on without it (CATCHER), or a second render does (TWO_RENDERS).
+    Only the rows that see a phantom are rendered: under a floor's CG about half the panorama."""
+    rows = engine.panorama_rows(centre, boxes, height)
+    if method == "CATCHER":
+        caught = renderer.render(centre, hidden=hidden, camera_hidden=casting, catchers=phantoms,
+                                 height=height, distance=True, rows=rows)
+        distance, warnings = renderer.distance
+        return engine.catcher_ratio(caught, rows), distance, list(warnings)
+    lit_with = renderer.render(centre, hidden=hidden, camera_hidden=casting, height=height,
+                               distance=True, rows=rows)
+    distance, warnings = renderer.distance
+    lit_without = renderer.render(centre, hidden=list(hidden) + list(casting), height=height, rows=rows)
+    return engine.shadow_ratio(lit_with, lit_without), distance, list(warnings)
+
+
+def moving_maps(folder, frames, centres):
+    """What the baked ratio group reads of a per-frame bake: the ratio and distance sequences' first
+    files and each frame's panorama centre."""
+    moving_folder = os.path.join(folder, engine.MOVING_FOLDER)
+    return {"ratio": os.path.join(moving_folder, engine.ratio_filename(frames[0])),
+            "distance": os.path.join(moving_folder, distance_maps.distance_filename(frames[0])),
+            "centres": dict(zip(frames, centres))}
 
 
 class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
@@ -316,6 +434,12 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
                          "light without it is rendered", items=METHODS, default=DEFAULT_METHOD)
     denoiser: EnumProperty(name="Denoiser", description="Who denoises the Shadow Catcher method's render",
                            items=DENOISERS, default=DEFAULT_DENOISER)
+    moving_shadows: EnumProperty(name="Moving CG", description="How the shadows of a CG that moves or "
+                                 "deforms during the shot are made (it is left out of the still CG's bake)",
+                                 items=MOVING_SHADOWS, default=DEFAULT_MOVING_SHADOWS)
+    moving_height: IntProperty(name="Moving Resolution", description="Height in pixels of each frame's "
+                               "shadow panorama of a moving CG (Baked Every Frame; width twice)",
+                               default=DEFAULT_MOVING_HEIGHT, min=16, max=8192)
 
     @classmethod
     def poll(cls, context):
@@ -327,7 +451,8 @@ class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
     def execute(self, context):
         try:
             summary = bake_shadows(context, self.height, self.samples, use_cache=not self.force,
-                                   method=self.method, denoiser=self.denoiser)
+                                   method=self.method, denoiser=self.denoiser,
+                                   moving_shadows=self.moving_shadows, moving_height=self.moving_height)
         except PlateLightError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -9,8 +9,10 @@ where the shadow is sharp, right under the CG; coarser far off, where it is soft
 frame only looks it up along the direction to each phantom point: a nearly free emission render
 instead of a path-traced catcher pass.
 
-What it cannot do, and the operators say so: points the panorama does not see (they get no
-change), glossy phantoms (their ratio depends on the view), CG or phantoms that move.
+A CG that moves or deforms is left out of that panorama; its shadows are baked at every frame
+(a panorama from above it, the still CG left out) or left to a catcher layer, and the two ratios
+multiply. What it cannot do, and the operators say so: points the panorama does not see (they
+get no change), glossy phantoms (their ratio depends on the view), phantoms that move.
 
 This module is the bpy-free part: the ratio and the files."""
 from __future__ import annotations
@@ -26,6 +28,8 @@ from ..fileio import write_json_atomic
 
 RATIO_FILE = "shadow_ratio.exr"
 RECORD_FILE = "shadow_ratio.json"
+# Inside the shadows folder: a moving CG's per-frame ratio and distance panoramas
+MOVING_FOLDER = "moving"
 # Without the CG a texel this dark received no light worth a ratio (sky, a black phantom).
 DARK = 1e-6
 # The largest brightening a ratio may apply (as the compositor's Shadow Clamp).
@@ -97,18 +101,32 @@ def ratio_to_texture(ratio: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(ratio, dtype=np.float32)[..., :3] - 1.0)
 
 
-def write_baked(folder: str, texture: np.ndarray, centre, height: int, samples: int, digest: str = "",
-                method: str = "", denoiser: str = "") -> str:
-    """Write the ratio texture and its record (the panorama's centre, the bake's settings, the
-    inputs' hash) into ``folder``; the record last, so a bake stopped halfway is never taken as
-    current."""
+def ratio_filename(frame: int | None = None) -> str:
+    """The ratio texture's file: RATIO_FILE, or for a moving CG's frame ``shadow_ratio_0010.exr``."""
+    if frame is None:
+        return RATIO_FILE
+    stem, ext = os.path.splitext(RATIO_FILE)
+    return f"{stem}_{int(frame):04d}{ext}"
+
+
+def write_ratio(folder: str, texture: np.ndarray, frame: int | None = None) -> str:
+    """Write the ratio texture (of one frame of a moving CG's, with ``frame``) into ``folder``."""
     os.makedirs(folder, exist_ok=True)
-    path = os.path.join(folder, RATIO_FILE)
+    path = os.path.join(folder, ratio_filename(frame))
     write_exr(path, texture)
-    write_json_atomic(os.path.join(folder, RECORD_FILE),
-                      {"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples),
-                       "method": method, "denoiser": denoiser, "hash": digest})
     return path
+
+
+def write_record(folder: str, centre, height: int, samples: int, digest: str = "", method: str = "",
+                 denoiser: str = "", moving: dict | None = None) -> None:
+    """Write the bake's record (the panorama's centre, the bake's settings, the inputs' hash, and
+    for a shot with moving CG which, how their shadows are made and each frame's centre) into
+    ``folder``; written last, so a bake stopped halfway is never taken as current."""
+    record = {"centre": [float(v) for v in centre], "height": int(height), "samples": int(samples),
+              "method": method, "denoiser": denoiser, "hash": digest}
+    if moving:
+        record["moving"] = moving
+    write_json_atomic(os.path.join(folder, RECORD_FILE), record)
 
 
 def read_record(folder: str) -> dict | None:

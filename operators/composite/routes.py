@@ -69,13 +69,14 @@ class Choice:
 
 def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
                  motions: Callable[[], dict], is_current: Callable[[frozenset], bool | None],
-                 phantom_names=frozenset()) -> Choice:
+                 phantom_names=frozenset(), moving_baked: Callable[[], bool] = lambda: False) -> Choice:
     """The route and engine for ``method`` (AUTO or a route's name) and ``engine`` (CYCLES or
     EEVEE), given whether the shot's shadows are ``baked`` and the scene's ``motion_blur``.
     ``motions`` ({name: Motion} of the CG and phantoms, ``phantom_names``, that move) and
     ``is_current`` (does the bake fit the scene, given the names of the CG that moves) are called
     only where a bake could be used: both walk the scene. A bake that left the moving CG out
-    serves the still CG (MIXED). Raises PlateLightError, having changed nothing, where what was
+    serves the still CG, the moving CG's shadows rendered by a catcher every frame (MIXED), or
+    looked up as baked at every frame where ``moving_baked`` says so (BAKED). Raises PlateLightError, having changed nothing, where what was
     asked cannot be done."""
     if method == "BAKED" and not baked:
         raise PlateLightError("The Baked Shadows method needs the shot's shadows: run Bake "
@@ -98,11 +99,11 @@ def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
             again = "bake the shadows again (the bake leaves what moves out) or " if bakeable else ""
             raise PlateLightError(f"{first.sentence()}, and the shadows baked with it cannot follow it: "
                                   f"{again}use the Automatic or Shadow Catcher method.")
-        method = "MIXED"
+        method = "BAKED" if moving_baked() else "MIXED"
 
     reports = []
     if method == "AUTO":
-        method = ("MIXED" if moving else "BAKED") if current else "CATCHER"
+        method = ("BAKED" if not moving or moving_baked() else "MIXED") if current else "CATCHER"
         if moving and not current:
             reports.append(("WARNING", f"{first.sentence()}: the Shadow Catcher renders the shadows "
                             "every frame instead of the baked ones."))

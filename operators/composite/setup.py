@@ -13,7 +13,7 @@ from ...node_groups import ray_twin
 from ...node_groups.sbrdf_material import is_metal, sbrdf_node, shaded_by_sbrdf
 from ..bake.inputs import wants_sharp_probe
 from .. import motion
-from ..baked_shadows import baked_is_current
+from ..baked_shadows import baked_is_current, moving_baked
 from ..common import classify_objects, find_plate_image, set_plate_colour_management
 from ...node_groups.baked_shadow import ensure_ratio_aov
 from ..phantoms import apply_phantom_surfaces
@@ -76,7 +76,8 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
                           motion_blur=scene.render.use_motion_blur,
                           motions=lambda: motion.motions(scene, cg + phantoms),
                           is_current=lambda moving: baked_is_current(scene, moving),
-                          phantom_names=frozenset(ob.name for ob in phantoms))
+                          phantom_names=frozenset(ob.name for ob in phantoms),
+                          moving_baked=lambda: moving_baked(scene))
     route, engine = choice.route, choice.engine
     reports = list(choice.reports)
 

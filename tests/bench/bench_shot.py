@@ -2,6 +2,8 @@
 
 Each scene is a CG object on stand-ins for real surfaces (phantoms) under an environment, filmed
 by a camera orbiting 20 degrees over a 24-frame shot; frames 1, 12 and 24 are rendered and scored.
+In a moving scene the sphere also rolls across the floor over the shot, and every frame's work
+that the route needs (a per-frame shadow bake) is done for all 24.
 The truth is Cycles path-traced with the CG there, the plate the same without it, each the mean
 of two halves of independent seeds: the halves' difference is the truth's own noise, so every
 score is judged against the truth's ceiling. The routes follow the user's order (plate first,
@@ -9,7 +11,8 @@ then the bakes) and run interleaved: each row of a scene once, then each again, 
 the machine's load falls on all alike; times are the median of the repeats, with their spread.
 The reference is the shadow catcher as a skilled artist sets it up (tests/shot_catcher.py).
 
-Writes docs/bench/shot_<W>x<H>.md, .png and _rows.json from this run alone.
+Writes docs/bench/<name>_<W>x<H>.md, .png and _rows.json from this run alone (name: shot, or
+PLATELIGHT_BENCH_NAME; `make bench-motion` runs the moving scenes as "motion").
 
 Run: `make bench-shot` (960x540; `make bench-shot-gpu` with Cycles on a GPU). Environment: PLATELIGHT_BENCH_SIZE=WxH,
 PLATELIGHT_BENCH_SCENES="a;b" (a subset, by name), PLATELIGHT_BENCH_REPEATS (3),
@@ -54,6 +57,7 @@ class Scene:
     material: str          # a bench_composite.MATERIALS key
     box: bool = False      # a red phantom box beside the sphere
     noise: float = 0.0     # the plate's sensor noise (standard deviation at mid-grey)
+    rolls: bool = False    # the sphere rolls across the floor over the shot
 
 
 # in the order they run: a run stopped early reports what it has
@@ -63,7 +67,18 @@ SCENES = {
     "overcast, glossy tiles, glossy": Scene("overcast", "tiles", "glossy"),
     "lamp room, grey floor, anisotropic": Scene("lamp_room", "grey", "anisotropic"),
     "city, noisy plate, diffuse": Scene("city", "photo", "diffuse", noise=0.01),
+    "rolling, hard sun, photo floor, diffuse": Scene("hard_sun", "photo", "diffuse", rolls=True),
+    "rolling, city, grey floor, mirror + box": Scene("city", "grey", "mirror", box=True, rolls=True),
 }
+MOVING_SCENES = [name for name, spec in SCENES.items() if spec.rolls]
+# the rolling sphere's path over the shot (m, along x), turning as it rolls
+ROLL_FROM, ROLL_TO = -0.6, 0.6
+
+
+def scene_frames(spec: Scene) -> tuple:
+    """The scene frames the scored frames are: a still shot is keyed at 1, 2, 3 (nothing is done
+    between them); a moving one runs the whole shot, so its per-frame work is all there."""
+    return SCORED_FRAMES if spec.rolls else tuple(range(1, len(SCORED_FRAMES) + 1))
 
 
 def counts(variable, default):
@@ -74,6 +89,8 @@ def counts(variable, default):
 ROUTES = {
     "platelight": ("platelight (default)", "platelight", counts("PLATELIGHT_BENCH_CG_SPP", "1,4,16")),
     "paper": ("platelight (paper's model)", "paper", (16,)),
+    # a moving CG's shadows baked per frame at the still bake's 512 rows (the default: 256)
+    "moving_512": ("platelight, moving shadows at 512 rows", "platelight", (4,)),
     "catcher": ("catcher", "catcher", counts("PLATELIGHT_BENCH_CATCHER_SPP", "4,16,64,256,1024")),
     # PlateLight's shadow bake caps diffuse bounces at 3: the catcher is offered the same cap
     "catcher_3": ("catcher, 3 diffuse bounces", "catcher", (16, 64)),
@@ -140,8 +157,8 @@ def floor_material(bpy, kind: str):
 
 
 def build(bpy, spec: Scene, frame: int = 1):
-    """The scene with its CG sphere, floor (and box) and the camera keyed at scene frames
-    1..len(SCORED_FRAMES) to the shot's scored frames; (scene, cg, phantoms)."""
+    """The scene with its CG sphere, floor (and box) and the camera keyed at scene_frames to the
+    shot's scored frames (a rolling sphere keyed with it); (scene, cg, phantoms)."""
     width, height = (int(v) for v in SIZE.split("x"))
     bc.W, bc.H = width, height
     scene, floor, sphere = bc.build(bpy, environment_path(spec.hdri), bc.MATERIALS[spec.material],
@@ -151,10 +168,37 @@ def build(bpy, spec: Scene, frame: int = 1):
     floor.active_material = floor.data.materials[0]
     floor.data.uv_layers.new()
     phantoms = [floor] + ([scene.objects["Box"]] if spec.box else [])
-    bc.key_shot_camera(scene, spec.box, SCORED_FRAMES)
+    if spec.rolls:
+        scene.frame_start, scene.frame_end = 1, SHOT_FRAMES
+        key_rolling_shot(scene, sphere, spec.box)
+    else:
+        bc.key_shot_camera(scene, spec.box, SCORED_FRAMES)
     scene.frame_set(frame)
     bc.set_device(scene)
     return scene, [sphere], phantoms
+
+
+def key_rolling_shot(scene, sphere, box):
+    """Key the orbiting camera and the sphere rolling from ROLL_FROM to ROLL_TO (turning by the
+    distance over its radius) at each scored frame of the 24-frame shot."""
+    import math
+
+    from mathutils import Vector
+
+    cam = scene.camera
+    centre, radius = bc.SPHERE
+    for frame in SCORED_FRAMES:
+        location, target, lens = bc.shot_camera(frame, box)
+        cam.location = location
+        cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+        cam.data.lens = lens
+        cam.keyframe_insert("location", frame=frame)
+        cam.keyframe_insert("rotation_euler", frame=frame)
+        x = ROLL_FROM + (ROLL_TO - ROLL_FROM) * (frame - 1) / (SHOT_FRAMES - 1)
+        sphere.location = (centre[0] + x, centre[1], centre[2])
+        sphere.rotation_euler = (0.0, x / radius, 0.0)
+        sphere.keyframe_insert("location", frame=frame)
+        sphere.keyframe_insert("rotation_euler", frame=frame)
 
 
 # ------------------------------------------------------------------ truths, plates, masks
@@ -166,13 +210,13 @@ def truth_set(bpy, name: str, spec: Scene):
     folder = CACHE / SIZE / slug(name)
     folder.mkdir(parents=True, exist_ok=True)
     out = {"truth": [], "plate": [], "halves": ([], []), "alpha": []}
-    for index in range(1, len(SCORED_FRAMES) + 1):
+    for index, frame in enumerate(scene_frames(spec), start=1):
         halves = {}
         for kind, with_cg in (("truth", True), ("plate", False)):
             for half in (1, 2):
                 path = folder / f"{kind}_{index}_{half}_{TRUTH_HALF_SPP}.exr"
                 if not path.exists():
-                    scene, cg, _ = build(bpy, spec, index)
+                    scene, cg, _ = build(bpy, spec, frame)
                     scene.cycles.samples = TRUTH_HALF_SPP
                     scene.cycles.use_denoising = False
                     scene.cycles.blur_glossy = 0.0
@@ -184,7 +228,7 @@ def truth_set(bpy, name: str, spec: Scene):
                 halves[kind, half] = read_exr(path)
         path = folder / f"alpha_{index}.exr"
         if not path.exists():
-            scene, cg, phantoms = build(bpy, spec, index)
+            scene, cg, phantoms = build(bpy, spec, frame)
             scene.render.film_transparent = True
             scene.cycles.samples, scene.cycles.max_bounces = 16, 0
             scene.cycles.use_denoising = False
@@ -203,8 +247,11 @@ def truth_set(bpy, name: str, spec: Scene):
         out["truth"][index] = out["truth"][index] + grain
     plate_dir = folder / f"plates_{TRUTH_HALF_SPP}"
     plate_dir.mkdir(exist_ok=True)
-    for index, plate in enumerate(out["plate"], start=1):
-        write_exr(plate_dir / f"plate_{index:04d}.exr", plate)
+    # one file a scene frame; a moving shot's frames between the scored ones hold the nearest
+    frames = scene_frames(spec)
+    for frame in range(1, frames[-1] + 1):
+        nearest = int(np.argmin([abs(frame - f) for f in frames]))
+        write_exr(plate_dir / f"plate_{frame:04d}.exr", out["plate"][nearest])
     out["plate_path"] = plate_dir / "plate_0001.exr"
     return out
 
@@ -246,8 +293,8 @@ def run_platelight(bpy, spec, data, samples, out_dir, paper=False, shadow_bake=N
     assert bpy.ops.platelight.setup_composite(cg_samples=samples, **(composite or {})) == {"FINISHED"}
     setup_s = time.perf_counter() - t0 - bake_s
     images, seconds = [], []
-    for index in range(1, len(SCORED_FRAMES) + 1):
-        scene.frame_set(index)
+    for index, frame in enumerate(scene_frames(spec), start=1):
+        scene.frame_set(frame)
         image, took = bc.render(bpy, scene, out_dir / f"frame_{index:04d}.exr")
         images.append(image)
         seconds.append(took)
@@ -266,8 +313,8 @@ def run_catcher(bpy, spec, data, samples, out_dir, diffuse_bounces=None):
                                lambda s: render_passes(bpy, s, out_dir / "match.exr", compat().OBJECT_INDEX_LAYER))
     setup_s = time.perf_counter() - t0
     images, seconds = [], []
-    for index in range(1, len(SCORED_FRAMES) + 1):
-        scene.frame_set(index)
+    for index, frame in enumerate(scene_frames(spec), start=1):
+        scene.frame_set(frame)
         t1 = time.perf_counter()
         combined, catcher = render_passes(bpy, scene, out_dir / f"frame_{index:04d}.exr", "Shadow Catcher")
         images.append(shot_catcher.composite(combined, catcher, data["plate"][index - 1]))
@@ -292,6 +339,8 @@ def run_route(bpy, key, spec, data, samples, out_dir):
         return run_platelight(bpy, spec, data, samples, out_dir)
     if key == "paper":
         return run_platelight(bpy, spec, data, samples, out_dir, paper=True)
+    if key == "moving_512":
+        return run_platelight(bpy, spec, data, samples, out_dir, shadow_bake={"moving_height": 512})
     return run_catcher(bpy, spec, data, samples, out_dir, diffuse_bounces=3 if key == "catcher_3" else None)
 
 
@@ -306,10 +355,14 @@ def main(out_dir: pathlib.Path) -> None:
 
     # built once per machine and add-on version: a user's shot does not pay it
     importlib.import_module(f"{support.EXT_MODULE}.node_groups.probe_maps").prepare_templates()
-    only = os.environ.get("PLATELIGHT_BENCH_SCENES")
+    bench_name = os.environ.get("PLATELIGHT_BENCH_NAME", "shot")
+    # the still shot's table and the moving shot's are each their own run
+    only = os.environ.get("PLATELIGHT_BENCH_SCENES") or ";".join(
+        n for n in SCENES if (n in MOVING_SCENES) == (bench_name == "motion"))
     keys = os.environ.get("PLATELIGHT_BENCH_ROUTES")
     routes = {k: v for k, v in ROUTES.items() if not keys or k in keys.split(",")}
-    stem = f"shot_{SIZE}" + ("" if bc.DEVICE == "CPU" else f"_{bc.DEVICE.lower()}")
+    stem = (f"{bench_name}_{SIZE}"
+            + ("" if bc.DEVICE == "CPU" else f"_{bc.DEVICE.lower()}"))
     rows = []
     for name, spec in SCENES.items():
         if only and name not in only.split(";"):
@@ -383,6 +436,7 @@ def write_report(out_dir, stem, rows, header):
              f"{REPEATS} times each, interleaved. Truth: 2 × {TRUTH_HALF_SPP} spp, no denoiser, Filter Glossy 0. "
              "Produced by `tests/bench/bench_shot.py`; nothing here is written by hand.", "",
              "Scenes: " + "; ".join(f"*{n}*: {s.hdri} environment, {s.floor} floor, {s.material} sphere"
+                                    + (f" rolling {ROLL_TO - ROLL_FROM:g} m" if s.rolls else "")
                                     + (", a red phantom box" if s.box else "")
                                     + (f", plate noise {s.noise:g}" if s.noise else "")
                                     for n, s in SCENES.items() if any(r["scene"] == n for r in rows)) + ".", "",

@@ -115,16 +115,17 @@ def test_bake_restores_the_scene_and_bad_input_is_one_sentence(bpy_clean, tmp_pa
     with pytest.raises(RuntimeError, match="run Bake Shadows"):
         bpy.ops.platelight.setup_composite(method="BAKED")
 
-    # a CG that moves during the shot (the one-frame plate made the shot one frame long)
+    # a phantom that moves during the shot (the one-frame plate made the shot one frame long)
     scene.frame_end = 10
-    ball.keyframe_insert("location", frame=1)
-    ball.location.x += 1.0
-    ball.keyframe_insert("location", frame=10)
+    floor.keyframe_insert("location", frame=1)
+    floor.location.x += 1.0
+    floor.keyframe_insert("location", frame=10)
     scene.frame_set(1)
-    with pytest.raises(RuntimeError, match="moves during the shot"):
+    with pytest.raises(RuntimeError, match="'Ground' moves during the shot .from frame 2.: baked shadows "
+                       "need phantoms that stand still"):
         bpy.ops.platelight.bake_shadows(height=32, samples=2)
-    ball.animation_data_clear()
-    ball.location = tuple(CENTRE)
+    floor.animation_data_clear()
+    floor.location = (0.0, 0.0, 0.0)
     scene.frame_end = 1
 
     # no phantoms
@@ -467,7 +468,7 @@ def test_a_mirror_sees_the_filmed_floor_shadowed_and_without_noise(bpy_clean, tm
         far.keyframe_insert("location", frame=frame)
     scene.frame_set(1)
     cg_layer[names.FILMED_PHANTOMS_KEY] = 1.0
-    assert bpy.ops.platelight.bake_shadows(height=128, samples=32) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=32, moving_shadows="CATCHER") == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(cg_samples=1, denoise_shadows=False) == {"FINISHED"}
     assert "(mixed, cycles)" in capfd.readouterr().out and _floor.is_shadow_catcher
     mixed = cg(1, "f")

@@ -133,6 +133,11 @@ def test_choose_route_asks_for_the_scene_only_where_a_bake_could_serve(bpy_modul
         choice = routes.choose_route(method, "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
                                      is_current=lambda moving: moving == {"Ball"}, phantom_names={"Floor"})
         assert (choice.route.name, choice.reports, choice.moving) == ("MIXED", (), frozenset({"Ball"}))
+    # ... or where the bake holds its shadows at every frame, the baked layer alone
+    choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
+                                 is_current=lambda moving: moving == {"Ball"}, phantom_names={"Floor"},
+                                 moving_baked=lambda: True)
+    assert (choice.route.name, choice.reports, choice.moving) == ("BAKED", (), frozenset())
     choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
                                  is_current=lambda moving: False, phantom_names={"Floor"})
     assert choice.route.name == "CATCHER" and choice.moving == frozenset()

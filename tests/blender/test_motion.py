@@ -130,7 +130,19 @@ def test_a_ball_animated_after_the_bake_gets_each_frames_own_shadow(bpy_clean, t
 
     # frame 8: the shadow is the ball's there, not where it was baked
     scene.frame_set(FRAMES[1])
-    _image, passes = cs.render_with_passes(bpy, scene, tmp_path / "out")
+    check_frame_shadow(bpy, scene, ball, tmp_path / "out", 35)
+
+    # baked again, the ball's shadows are baked at every frame and only looked up
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=16, moving_height=128) == {"FINISHED"}
+    assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
+    assert "(baked, cycles)" in capfd.readouterr().out and not floor.is_shadow_catcher
+    scene.frame_set(FRAMES[1])
+    check_frame_shadow(bpy, scene, ball, tmp_path / "baked", 35)
+
+
+def check_frame_shadow(bpy, scene, ball, folder, least_psnr):
+    """The ratio under ``ball`` on this frame against the analytic shadow of it there."""
+    _image, passes = cs.render_with_passes(bpy, scene, folder)
     ground, origin, rays = cs.ground_points(bpy, scene)
     centre = np.array(ball.matrix_world.translation)
     assert abs(centre[0] - CENTRE[0] - 1.5) < 1e-6
@@ -144,9 +156,9 @@ def test_a_ball_animated_after_the_bake_gets_each_frames_own_shadow(bpy_clean, t
     # contact darkening: the darkest point under the ball
     assert abs(float(np.percentile(ratio[near], 1)) - float(np.percentile(expected[near], 1))) < 0.05
     # shadow PSNR of plate x ratio against plate x analytic ratio (peak: the plate's brightest)
-    plate = cs.read_exr(tmp_path / "plate.exr", "RGB").mean(axis=-1)
+    plate = cs.read_exr(folder.parent / "plate.exr", "RGB").mean(axis=-1)
     mse = np.mean((plate[near] * (ratio[near] - expected[near])) ** 2)
-    assert 10 * np.log10(plate.max() ** 2 / mse) >= 35
+    assert 10 * np.log10(plate.max() ** 2 / mse) >= least_psnr
     # the stale shadow would be far off
     assert np.median(np.abs(stale[near] - expected[near])) > 3 * np.median(error)
 
@@ -156,8 +168,9 @@ def test_moving_cg_refuses_a_bake_and_eevee_motion_blur_in_one_sentence(bpy_clea
     scene, floor, ball = floating_black_ball(bpy, tmp_path)
     assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
     animate_ball(scene, ball)
-    with pytest.raises(RuntimeError, match="'Sphere' moves during the shot .from frame 2.: baked shadows need"):
-        bpy.ops.platelight.bake_shadows(height=32, samples=2)
+    with pytest.raises(RuntimeError, match="'Sphere' moves during the shot .from frame 2.: baked shadows "
+                       "need at least one CG object .or Moving CG: Baked Every Frame. that stand still"):
+        bpy.ops.platelight.bake_shadows(height=32, samples=2, moving_shadows="CATCHER")
     assert not (tmp_path / "maps" / "_shadows").exists()
 
     scene.render.use_motion_blur = True
@@ -173,7 +186,11 @@ def test_moving_cg_refuses_a_bake_and_eevee_motion_blur_in_one_sentence(bpy_clea
 STILL, ROLL_FROM, ROLL_TO = np.array([-1.2, 0.0, HEIGHT]), np.array([1.2, -1.0, HEIGHT]), np.array([1.2, 1.0, HEIGHT])
 
 
-def test_a_still_ball_keeps_its_baked_shadow_while_a_moving_one_gets_each_frames(bpy_clean, tmp_path, capfd):
+@pytest.mark.parametrize("moving_shadows, route", [("PER_FRAME", "baked"), ("CATCHER", "mixed")])
+def test_a_still_ball_keeps_its_baked_shadow_while_a_moving_one_gets_each_frames(bpy_clean, tmp_path, capfd,
+                                                                                 moving_shadows, route):
+    """The moving ball's shadows baked at each frame, or caught every frame by a catcher layer of
+    their own; either way times the still ball's baked once."""
     from bake_scenes import probe_renders
     from platelight.operators import baked_shadows
 
@@ -188,23 +205,31 @@ def test_a_still_ball_keeps_its_baked_shadow_while_a_moving_one_gets_each_frames
     keyed(rolling, "location", [tuple(ROLL_FROM), tuple(ROLL_TO)])
     scene.frame_set(FRAMES[0])
     capfd.readouterr()
-    assert bpy.ops.platelight.bake_shadows(height=64, samples=8) == {"FINISHED"}
-    assert "'Rolling' moves during the shot (from frame 2): its shadow is left out of the bake" in \
-        capfd.readouterr().out
-    # the bake does not depend on where the moving ball is: still current on the last frame
+    renders = probe_renders()
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8, moving_shadows=moving_shadows, moving_height=64) == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert "'Rolling' moves during the shot (from frame 2): its shadow is left out of the bake of the still CG" in said
+    per_frame = moving_shadows == "PER_FRAME"
+    assert ("it is baked at each of the shot's frames" in said) == per_frame
+    # the still panorama, and one a frame of the rolling ball's
+    assert probe_renders() - renders == 1 + (FRAMES[1] - FRAMES[0] + 1 if per_frame else 0)
+    # current on the last frame too: the moving ball's place counts only where baked per frame
     scene.frame_set(FRAMES[1])
     assert baked_shadows.baked_is_current(scene)
     renders = probe_renders()
-    assert bpy.ops.platelight.bake_shadows(height=64, samples=8) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8, moving_shadows=moving_shadows, moving_height=64) == {"FINISHED"}
     assert probe_renders() == renders
 
     assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
     said = capfd.readouterr().out
-    assert "(mixed, cycles)" in said and "the shadows of 1 moving CG object(s) rendered every frame" in said
-    assert "WARNING" not in said
+    assert f"({route}, cycles)" in said and "WARNING" not in said
     used = {layer.name for layer in scene.view_layers if layer.use}
-    assert used == {"PlateLight CG", "PlateLight Shadows", "PlateLight Moving Shadows"}, used
-    assert [ob.name for ob in bpy.data.collections["PlateLight Moving CG"].objects] == ["Rolling"]
+    if per_frame:
+        assert used == {"PlateLight CG", "PlateLight Shadows"}, used
+    else:
+        assert "the shadows of 1 moving CG object(s) rendered every frame" in said
+        assert used == {"PlateLight CG", "PlateLight Shadows", "PlateLight Moving Shadows"}, used
+        assert [ob.name for ob in bpy.data.collections["PlateLight Moving CG"].objects] == ["Rolling"]
 
     _image, passes = cs.render_with_passes(bpy, scene, tmp_path / "out")
     ground, origin, rays = cs.ground_points(bpy, scene)
@@ -230,3 +255,7 @@ def test_a_still_ball_keeps_its_baked_shadow_while_a_moving_one_gets_each_frames
     assert was.sum() > 20
     stale = analytic_ratio(ground, STILL) * analytic_ratio(ground, ROLL_FROM)
     assert np.median(np.abs(ratio[was] - expected[was])) < 0.25 * np.median(np.abs(stale[was] - expected[was]))
+
+    # the rolling ball keyed elsewhere after the bake: a bake per frame no longer fits
+    keyed(rolling, "location", [tuple(ROLL_FROM), tuple(ROLL_TO + np.array([0.0, 0.5, 0.0]))])
+    assert baked_shadows.baked_is_current(scene) is (not per_frame)
