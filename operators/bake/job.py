@@ -26,7 +26,8 @@ from ...addon.ibl import distance as distance_maps
 from ...addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ...addon.ibl.maps import (DEFAULT_HEIGHTS, DIFFUSE_LMAX_EXACT, MAP_NAMES, MapSettings, compute_maps,
                                prepare_environment, write_maps)
-from ..common import GEOMETRY_TYPES, addon_preferences
+from .. import motion
+from ..common import GEOMETRY_TYPES, addon_preferences, classify_objects
 from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin, wants_behind_layer,
                      renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
 from .distance_render import distance_height, surface_points, write_probe_distance
@@ -273,10 +274,23 @@ class ProbeBake:
     # ---- steps
     def start(self):
         self.validate()
+        if self.static and self._queue and not self.check_only:
+            self._warn_of_motion()
         self._world_digest = content_hash(world_description(self.scene))
         self._frame0 = self.scene.frame_current
         self._world_pending = bool(self.world_only)
         self._pending = list(self._queue)
+
+    def _warn_of_motion(self):
+        """A single-frame probe holds the scene as it is now: say so where something in it moves."""
+        cg, phantoms = classify_objects(self.scene)
+        moving = motion.motions(self.scene, cg + phantoms)
+        if moving:
+            first = next(iter(moving.values()))
+            more = f" (and {len(moving) - 1} more)" if len(moving) > 1 else ""
+            self.warnings.append(f"{first.sentence()}{more}: these probes hold the scene as it is at frame "
+                                 f"{self.scene.frame_current}; bake the frame range (Frame Range) for "
+                                 "probes that follow what moves.")
 
     def step(self):
         """Do one unit of work (the world maps, or one object-frame). False when all is done."""

@@ -259,3 +259,18 @@ def test_a_still_ball_keeps_its_baked_shadow_while_a_moving_one_gets_each_frames
     # the rolling ball keyed elsewhere after the bake: a bake per frame no longer fits
     keyed(rolling, "location", [tuple(ROLL_FROM), tuple(ROLL_TO + np.array([0.0, 0.5, 0.0]))])
     assert baked_shadows.baked_is_current(scene) is (not per_frame)
+
+
+def test_a_single_frame_probe_bake_says_what_moves(bpy_clean, tmp_path, capfd):
+    bpy = bpy_clean
+    scene, _floor, ball = floating_black_ball(bpy, tmp_path)
+    scene.platelight.probe_height, scene.platelight.probe_samples = 16, 2
+    ball.platelight.enabled = True
+    rolling = cs.add_sphere(bpy, scene, location=tuple(ROLL_FROM), radius=R, name="Rolling")
+    scene.frame_start, scene.frame_end = FRAMES
+    keyed(rolling, "location", [tuple(ROLL_FROM), tuple(ROLL_TO)])
+    scene.frame_set(FRAMES[0])
+    assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert ("'Rolling' moves during the shot (from frame 2): these probes hold the scene as it is at "
+            "frame 1; bake the frame range") in said
