@@ -102,6 +102,17 @@ def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
         method = "BAKED" if moving_baked() else "MIXED"
 
     reports = []
+    # a shadow looked up from a frame's panorama does not blur with the CG as the shutter sweeps it
+    unblurred = bool(moving) and motion_blur and bool(current) and moving_baked()
+    if unblurred:
+        sentence = ("Motion Blur is on, and the shadows baked at each frame do not blur with the moving "
+                    "CG: {}; Bake Shadows with Moving CG: Shadow Catcher keeps the still CG's baked and "
+                    "blurs the moving CG's.")
+        if method == "AUTO":
+            reports.append(("WARNING", sentence.format("the Shadow Catcher renders them instead")))
+            current = None
+        else:
+            reports.append(("WARNING", sentence.format("the moving CG's shadows stay sharp")))
     if method == "AUTO":
         method = ("BAKED" if not moving or moving_baked() else "MIXED") if current else "CATCHER"
         if moving and not current:

@@ -138,6 +138,11 @@ def test_choose_route_asks_for_the_scene_only_where_a_bake_could_serve(bpy_modul
                                  is_current=lambda moving: moving == {"Ball"}, phantom_names={"Floor"},
                                  moving_baked=lambda: True)
     assert (choice.route.name, choice.reports, choice.moving) == ("BAKED", (), frozenset())
+    # ... but not under Motion Blur: a panorama per frame does not blur with the CG
+    choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=True, motions=lambda: rolling,
+                                 is_current=lambda moving: True, phantom_names={"Floor"},
+                                 moving_baked=lambda: True)
+    assert choice.route.name == "CATCHER" and "Motion Blur is on" in choice.reports[0][1]
     choice = routes.choose_route("AUTO", "CYCLES", baked=True, motion_blur=False, motions=lambda: rolling,
                                  is_current=lambda moving: False, phantom_names={"Floor"})
     assert choice.route.name == "CATCHER" and choice.moving == frozenset()

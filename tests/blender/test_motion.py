@@ -274,3 +274,67 @@ def test_a_single_frame_probe_bake_says_what_moves(bpy_clean, tmp_path, capfd):
     said = capfd.readouterr().out
     assert ("'Rolling' moves during the shot (from frame 2): these probes hold the scene as it is at "
             "frame 1; bake the frame range") in said
+
+
+def sunlit(ground, centre, towards_sun):
+    """1 where a floor point sees the sun past a ball at ``centre``, else 0."""
+    offset = centre - ground
+    along = offset @ towards_sun
+    across = np.linalg.norm(offset - along[..., None] * towards_sun, axis=-1)
+    return np.where((along > 0) & (across < R), 0.0, 1.0)
+
+
+def test_motion_blur_blurs_a_moving_ball_s_shadow_as_the_shutter_sweeps_it(bpy_clean, tmp_path, capfd):
+    """Under a hard sun in a black sky, with Motion Blur, a rolling ball's shadow is the fraction
+    of the shutter's positions of the ball from which the floor point sees the sun; a per-frame
+    bake, whose shadow would stay sharp, is passed over."""
+    from platelight.node_groups._build import action_fcurves
+
+    bpy = bpy_clean
+    scene, _floor, still = floating_black_ball(bpy, tmp_path, save=False)
+    cs.grey_world(bpy, scene, 0.0)
+    towards_sun = np.array([0.0, 1.0, 1.0]) / np.sqrt(2.0)     # the shadows fall 1 m towards the camera
+    cs.add_sun(bpy, scene, towards_sun, strength=3.0)
+    still.location = tuple(STILL)
+    rolling = cs.add_sphere(bpy, scene, location=(0.0, 0.8, HEIGHT), radius=R, name="Rolling")
+    rolling.data.materials.append(still.data.materials[0])
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    scene.frame_start, scene.frame_end = 1, 3
+    keyed(rolling, "location", [(0.0, 0.8, HEIGHT), (2.4, 0.8, HEIGHT)], frames=(1, 3))   # 1.2 m a frame
+    for curve in action_fcurves(rolling):
+        for point in curve.keyframe_points:
+            point.interpolation = "LINEAR"
+    scene.frame_set(1)
+    scene.render.use_motion_blur = True
+    shutter = scene.render.motion_blur_shutter              # centred on the frame (Blender's default)
+
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8, moving_height=64) == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert "(catcher, cycles)" in said and "Motion Blur is on, and the shadows baked at each frame" in said
+
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8, moving_shadows="CATCHER") == {"FINISHED"}
+    capfd.readouterr()
+    assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
+    said = capfd.readouterr().out
+    assert "(mixed, cycles)" in said and "WARNING" not in said
+
+    scene.frame_set(2)
+    _image, passes = cs.render_with_passes(bpy, scene, tmp_path / "out")
+    ground, origin, rays = cs.ground_points(bpy, scene)
+    swept = [np.array([1.2 * (t - 1), 0.8, HEIGHT]) for t in np.linspace(2 - shutter / 2, 2 + shutter / 2, 65)]
+    visible = np.isfinite(ground).all(axis=-1) & ~cs.sphere_hit(origin, rays, STILL, R, margin=0.05)
+    for centre in swept[::8]:
+        visible &= ~cs.sphere_hit(origin, rays, centre, R, margin=0.05)
+    ratio = passes["Shadows"][..., :3].mean(axis=-1)
+    still_lit = sunlit(ground, STILL, towards_sun)
+    blurred = still_lit * np.mean([sunlit(ground, c, towards_sun) for c in swept], axis=0)
+    sharp = still_lit * sunlit(ground, swept[32], towards_sun)
+    # where the blur changes the shadow, away from its analytic edges' pixel
+    swept_region = visible & (np.abs(blurred - sharp) > 0.1)
+    assert swept_region.sum() > 100, swept_region.sum()
+    error = np.abs(ratio - blurred)[swept_region]
+    assert np.median(error) < 0.05, np.median(error)
+    assert np.median(error) < 0.3 * np.median(np.abs(ratio - sharp)[swept_region])
