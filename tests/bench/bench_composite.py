@@ -246,11 +246,12 @@ def setup_arguments(route, samples):
     return arguments
 
 
-def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False, route="sbrdf"):
+def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False, route="sbrdf", frame_range=False):
     """The paper's CG: the sphere's Principled settings converted to the PlateLight SBRDF, shaded
     from its own probe (baked from its centre: floor + world). ``paper``: the paper's model as
     written (cosine falloff g', diffuse and specular added in full, the owner hidden in its probe)
-    instead of PlateLight's defaults. Returns the seconds the bake took."""
+    instead of PlateLight's defaults; ``frame_range``: a probe for every frame of the scene's range
+    (a moving sphere's). Returns the seconds the bake took."""
     from bl_ext.dev.platelight.node_groups import ray_twin, sbrdf_material
 
     scene.platelight.maps_dir = maps_folder(out_path)
@@ -270,7 +271,7 @@ def sbrdf_sphere(bpy, scene, sphere, out_path, paper=False, route="sbrdf"):
         ray_twin.set_emission_for_all_rays(material, True)   # the emission lights the phantoms
     t0 = time.perf_counter()
     # the scripting contract's bake, with the world's full importance map (its default)
-    assert bpy.ops.platelight.bake_probes(all_objects=True, force=True) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_probes(all_objects=True, force=True, use_frame_range=frame_range) == {"FINISHED"}
     return time.perf_counter() - t0
 
 

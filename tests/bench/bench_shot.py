@@ -285,8 +285,9 @@ def run_platelight(bpy, spec, data, samples, out_dir, paper=False, shadow_bake=N
         ob.platelight.phantom = True
     t0 = time.perf_counter()
     assert bpy.ops.platelight.setup_plate(filepath=str(data["plate_path"])) == {"FINISHED"}
+    # a rolling sphere's probe follows it: baked at every frame, as the bake's warning asks
     bake_s = bc.sbrdf_sphere(bpy, scene, cg[0], out_dir / "frame", paper=paper,
-                             route="sbrdf_paper" if paper else "sbrdf")
+                             route="sbrdf_paper" if paper else "sbrdf", frame_range=spec.rolls)
     t1 = time.perf_counter()
     assert bpy.ops.platelight.bake_shadows(**(shadow_bake or {})) == {"FINISHED"}
     bake_s += time.perf_counter() - t1
