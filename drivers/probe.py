@@ -102,7 +102,6 @@ def run(args) -> int:
     import cv2
 
     from ..addon.exr_io import write_exr
-    from ..addon.capture import ball_finder
     from ..addon.capture.mirror_ball import Ball
     from ..addon.capture.probe import candidates_picture, make_probe
 
@@ -135,8 +134,9 @@ def run(args) -> int:
                             shared_response=not args.per_channel_response, align_target=align,
                             intrinsics=intrinsics, fill=args.fill)
     except PlateLightError as err:
-        if args.report and ball_finder.LAST_FITS:      # not found, or two balls: show what was seen
-            write_candidates(args.report, args.images, ball_finder.LAST_FITS, err)
+        seen = getattr(err, "candidates", ())
+        if args.report and seen:      # not found, or two balls: show what was seen
+            write_candidates(args.report, args.images, seen, err)
         raise
     write_exr(args.out, result.probe)
     if args.report:

@@ -142,12 +142,10 @@ class PLATELIGHT_OT_capture_probe(NeedsScene, bpy.types.Operator):
             wm.progress_update(2)
             write_exr(out, result.probe)
         except PlateLightError as err:
-            from ..addon.capture import ball_finder
-
             report_error(self, err, PROBE_FIELDS)
-            if ball is None and ball_finder.LAST_FITS:      # what was seen, to type into Ball Circle
-                seen = "; ".join(f"{f.cx:.0f},{f.cy:.0f},{f.radius:.0f} ({f.confidence:.2f})"
-                                 for f in ball_finder.LAST_FITS[:3])
+            seen = getattr(err, "candidates", ())       # the finder's circles: to type into Ball Circle
+            if ball is None and seen:
+                seen = "; ".join(f"{f.cx:.0f},{f.cy:.0f},{f.radius:.0f} ({f.confidence:.2f})" for f in seen[:3])
                 self.report({"INFO"}, f"Circles the finder saw (CX,CY,R and confidence): {seen}.")
             return {"CANCELLED"}
         finally:

@@ -54,7 +54,6 @@ MIN_SEEN = 0.5
 OUTER_CALM = 3.0
 OUTER_GAP_PX = 1.5
 MIN_RIM_CONTRAST = 0.05
-LAST_FITS: list = []
 HOW_TO_GIVE = "give its circle with {ball}"        # {ball}: named by each front end (wording.py)
 BALL = {"ball": "its centre and radius in pixels"}
 
@@ -401,8 +400,22 @@ def arc_support(on: np.ndarray, min_run: int = MIN_ARC_RAYS) -> float:
     return float(runs[runs >= min_run].sum() / len(on))
 
 
+class BallNotFound(PlateLightError):
+    """No ball, or two: ``candidates`` holds the circles the finder saw (best first), for the
+    front ends to show the user."""
+
+    def __init__(self, message: str, candidates, **inputs: str):
+        super().__init__(message, **inputs)
+        self.candidates = list(candidates)
+
+
 def find_ball(image: np.ndarray) -> BallFit:
-    """The mirror ball in a photo (8/16-bit BGR or float radiance), or PlateLightError."""
+    """The mirror ball in a photo (8/16-bit BGR or float radiance), or BallNotFound."""
+    return find_ball_and_candidates(image)[0]
+
+
+def find_ball_and_candidates(image: np.ndarray) -> tuple[BallFit, list[BallFit]]:
+    """(the mirror ball in a photo, every circle the finder saw, best first), or BallNotFound."""
     import cv2
 
     display, linear = luminance_planes(image)
@@ -434,23 +447,23 @@ def find_ball(image: np.ndarray) -> BallFit:
         if fine is not None:
             fits.append(fine)
     fits = _distinct(fits)
-    LAST_FITS[:] = fits
     good = [f for f in fits if f.confidence >= MIN_CONFIDENCE]
     if not good:
         blurred = [f for f in fits if f.blurred_support >= MIN_CONFIDENCE]
         if blurred:
-            raise PlateLightError(
+            raise BallNotFound(
                 f"The photo is too blurred at the ball's outline (its edge is {blurred[0].rim_width:.0f} px wide) "
-                f"to find the ball; refocus on the ball, or {HOW_TO_GIVE}.", **BALL)
-        raise PlateLightError(f"No mirror ball was found in the photo; {HOW_TO_GIVE}.", **BALL)
+                f"to find the ball; refocus on the ball, or {HOW_TO_GIVE}.", fits, **BALL)
+        raise BallNotFound(f"No mirror ball was found in the photo; {HOW_TO_GIVE}.", fits, **BALL)
     best = good[0]
     rival = next((f for f in fits if f is not best and not _overlap(f, best)
                   and f.confidence >= max(RIVAL_SHARE * best.confidence, MIN_RIVAL)), None)
     if rival is not None:
-        raise PlateLightError(
+        raise BallNotFound(
             f"Two mirror balls were found (at {best.cx:.0f},{best.cy:.0f} r {best.radius:.0f} and "
-            f"{rival.cx:.0f},{rival.cy:.0f} r {rival.radius:.0f} px); {HOW_TO_GIVE} of the one to use.", **BALL)
-    return best
+            f"{rival.cx:.0f},{rival.cy:.0f} r {rival.radius:.0f} px); {HOW_TO_GIVE} of the one to use.",
+            fits, **BALL)
+    return best, fits
 
 
 def _overlap(a: BallFit, b: BallFit) -> bool:

@@ -65,7 +65,11 @@ def find_ball(image: np.ndarray) -> Ball:
     """The mirror ball in a photo (8/16-bit BGR, or float radiance): see ball_finder."""
     from . import ball_finder
 
-    fit = ball_finder.find_ball(image)
+    return ball_of(ball_finder.find_ball(image))
+
+
+def ball_of(fit) -> Ball:
+    """The Ball of a ball_finder fit (an ellipse only where its axes differ)."""
     return Ball(fit.cx, fit.cy, fit.rx, fit.ry if abs(fit.ry - fit.rx) > 1e-6 else None, fit.confidence)
 
 

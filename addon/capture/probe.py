@@ -54,7 +54,6 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
     if not (np.isfinite(reflectance) and 0 < reflectance <= 1):
         raise PlateLightError("The ball's reflectance must be in (0, 1].")
     paths = [os.fspath(p) for p in paths]
-    ball_finder.LAST_FITS.clear()                 # a failed run shows only what it saw itself
     if len(paths) == 1:                           # one phone photo: an LDR probe, with a warning
         if exposures is not None and len(exposures) != 1:
             raise PlateLightError(f"{len(exposures)} exposure times were given for 1 photo.")
@@ -67,8 +66,8 @@ def make_probe(paths, exposures=None, ball: mirror_ball.Ball | None = None, heig
         searched = merged.radiance
     candidates = []
     if ball is None:
-        ball = mirror_ball.find_ball(searched)
-        candidates = list(ball_finder.LAST_FITS)
+        fit, candidates = ball_finder.find_ball_and_candidates(searched)
+        ball = mirror_ball.ball_of(fit)
     h, w = merged.radiance.shape[:2]
     mirror_ball.check_ball(ball, w, h)
     if align_target is not None:

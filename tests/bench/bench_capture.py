@@ -185,11 +185,11 @@ def bench_balls_real():
     without = []
     for path in sorted(rp.FROBISHER.glob("*.jpg")) + sorted(rp.CHARUCO.glob("*.jpg")):
         try:
-            fit = ball_finder.find_ball(rp.read(path))
+            fit, seen = ball_finder.find_ball_and_candidates(rp.read(path))
             outcome = f"found r {fit.radius:.0f} (confidence {fit.confidence:.2f}): wrong"
         except PlateLightError as err:
-            outcome = str(err).split(";")[0]
-        best = max((f.confidence for f in ball_finder.LAST_FITS), default=0.0)
+            outcome, seen = str(err).split(";")[0], getattr(err, "candidates", ())
+        best = max((f.confidence for f in seen), default=0.0)
         without.append({"photo": f"{path.parent.name}/{path.name}", "outcome": outcome, "best": best})
     return rows, without
 
