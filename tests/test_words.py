@@ -42,11 +42,6 @@ MARKDOWN_ONLY = {
     "KEEP_ROWS": re.compile(r"\bKEEP_ROWS\b"),
 }
 
-# Files being rewritten elsewhere right now, which still hold such words. The set may only
-# shrink: test_not_yet_clean_only_shrinks fails on an entry that is gone or already clean.
-NOT_YET_CLEAN = {
-    "docs/capture.md",
-}
 
 
 def _markdown_files():
@@ -123,17 +118,8 @@ def _all_files():
 def test_docs_and_comments_speak_of_the_product():
     hits = []
     for path in _all_files():
-        if path.relative_to(REPO).as_posix() in NOT_YET_CLEAN:
-            continue
         hits += _hits_in(path)
     assert not hits, "history of the making, not the product:\n" + "\n".join(hits)
-
-
-@pytest.mark.parametrize("name", sorted(NOT_YET_CLEAN))
-def test_not_yet_clean_only_shrinks(name):
-    path = REPO / name
-    assert path.is_file(), f"{name} is gone: take it out of NOT_YET_CLEAN"
-    assert _hits_in(path), f"{name} is clean now: take it out of NOT_YET_CLEAN"
 
 
 def test_the_patterns_catch_history_and_spare_the_product():
