@@ -13,7 +13,6 @@ import pathlib
 import re
 import tokenize
 
-import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 PY_FOLDERS = ("addon", "operators", "node_groups", "ui", "drivers", "tools", "tests")
