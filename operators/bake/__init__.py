@@ -43,12 +43,14 @@ class _ProbeOperator:
         return True
 
     def _frames(self, context):
-        """(frames, static): the range when asked for (frame_start/frame_end given or Frame
-        Range ticked), else the current frame with single-frame file names."""
-        props = self.properties
-        if self.use_frame_range or props.is_property_set("frame_start") or props.is_property_set("frame_end"):
-            start = self.frame_start
-            end = self.frame_end if props.is_property_set("frame_end") or self.use_frame_range else start
+        """(frames, static): the range when asked for (frame_start/frame_end given, or Frame
+        Range ticked: the scene's range where they are not), else the current frame with
+        single-frame file names."""
+        props, scene = self.properties, context.scene
+        given_start, given_end = props.is_property_set("frame_start"), props.is_property_set("frame_end")
+        if self.use_frame_range or given_start or given_end:
+            start = self.frame_start if given_start else (scene.frame_start if self.use_frame_range else 1)
+            end = self.frame_end if given_end else (scene.frame_end if self.use_frame_range else start)
             if end < start:
                 raise PlateLightError(f"The frame range ends ({end}) before it starts ({start}).")
             return list(range(start, end + 1)), False

@@ -274,6 +274,12 @@ def test_a_single_frame_probe_bake_says_what_moves(bpy_clean, tmp_path, capfd):
     said = capfd.readouterr().out
     assert ("'Rolling' moves during the shot (from frame 2): these probes hold the scene as it is at "
             "frame 1; bake the frame range") in said
+    # Frame Range alone bakes the scene's range: a probe a frame, and nothing more to say
+    scene.frame_end = 3
+    assert bpy.ops.platelight.bake_probes(all_objects=True, use_frame_range=True) == {"FINISHED"}
+    assert "these probes hold" not in capfd.readouterr().out
+    assert sorted(p.name for p in (tmp_path / "maps" / "Sphere").glob("diffuse_0*.exr")) == [
+        "diffuse_0001.exr", "diffuse_0002.exr", "diffuse_0003.exr"]
 
 
 def sunlit(ground, centre, towards_sun):
