@@ -314,6 +314,7 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
     mattes = {albedo: _matte(albedo) for albedo in {matte_albedo(ob) for ob in phantoms}}
     frame0, subframe0 = scene.frame_current, scene.frame_subframe
     centres, warnings = [], []
+    wm = context.window_manager
     try:
         for other in scene.view_layers:
             if other != layer and other.use:
@@ -336,7 +337,6 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
         ratio_path = engine.write_ratio(folder, engine.ratio_to_texture(ratio))
         # Each frame's moving CG's shadows from above it, the still CG not there (theirs are above)
         moving_folder = os.path.join(folder, engine.MOVING_FOLDER)
-        wm = context.window_manager
         wm.progress_begin(0, max(1, len(frames)))
         for done, frame in enumerate(frames):
             scene.frame_set(frame)
@@ -348,8 +348,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
             distance_maps.write_distance(moving_folder, distance, frame)
             engine.write_ratio(moving_folder, engine.ratio_to_texture(ratio), frame)
             wm.progress_update(done + 1)
-        wm.progress_end()
     finally:
+        wm.progress_end()
         scene.frame_set(frame0, subframe=subframe0)
         errors = state.restore()
         renderer.end()
@@ -357,7 +357,8 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
             bpy.data.materials.remove(material)
         scene.view_layers.remove(layer)
     per_frame_record = {"names": sorted(moving), "mode": "PER_FRAME" if per_frame else "CATCHER",
-                        "height": moving_height if per_frame else 0, "frames": frames, "centres": [[float(v) for v in c] for c in centres]}
+                        "height": moving_height if per_frame else 0, "frames": frames,
+                        "centres": [[float(v) for v in c] for c in centres]}
     engine.write_record(folder, centre, height, samples, digest, method, denoiser,
                         per_frame_record if moving else None)
     baked_shadow_material(ratio_path, distance_path, centre,
@@ -368,13 +369,14 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
 
 # A moving CG's shadows baked at more frames than this is refused (the catcher renders them)
 MOST_MOVING_FRAMES = 10_000
-MOVING_SHADOWS = (("PER_FRAME", "Baked Every Frame", "A panorama of the moving CG's shadows from above it "
-                   "at each frame of the shot, looked up as the still CG's are"),
-                  ("CATCHER", "Shadow Catcher", "Set Up Composite renders the moving CG's shadows every "
-                   "frame in a shadow-catcher layer of their own"))
-DEFAULT_MOVING_SHADOWS = "PER_FRAME"
-# A moving CG's per-frame panoramas: fewer rows than the still bake's, as it is paid every frame
-# (docs/bench/motion_320x180.md publishes both)
+MOVING_SHADOWS = (("CATCHER", "Shadow Catcher", "Set Up Composite renders the moving CG's shadows every "
+                   "frame in a shadow-catcher layer of their own (the faster, docs/bench/motion_320x180.md)"),
+                  ("PER_FRAME", "Baked Every Frame", "A panorama of the moving CG's shadows from above it "
+                   "at each frame of the shot, looked up as the still CG's are"))
+# The catcher layer: a panorama a frame cost more than the catcher's whole frame at equal shadow
+# PSNR (docs/decisions.md, "Moving CG")
+DEFAULT_MOVING_SHADOWS = "CATCHER"
+# A moving CG's per-frame panoramas (docs/bench/motion_320x180.md publishes 256 and 512 rows)
 DEFAULT_MOVING_HEIGHT = 256
 
 
@@ -417,8 +419,8 @@ def moving_maps(folder, frames, centres):
 
 class PLATELIGHT_OT_bake_shadows(bpy.types.Operator):
     """Render the shot's CG shadows on the phantoms once, from above, for the Baked Shadows
-    composite (of the CG that stands still: a moving one's shadow is rendered every frame; the
-    phantoms must stand still, the camera may move)"""
+    composite (a CG that moves gets a panorama of its shadows at every frame, or a catcher layer;
+    the phantoms must stand still, the camera may move)"""
 
     bl_idname = "platelight.bake_shadows"
     bl_label = "Bake Shadows"

@@ -133,7 +133,7 @@ def test_a_ball_animated_after_the_bake_gets_each_frames_own_shadow(bpy_clean, t
     check_frame_shadow(bpy, scene, ball, tmp_path / "out", 35)
 
     # baked again, the ball's shadows are baked at every frame and only looked up
-    assert bpy.ops.platelight.bake_shadows(height=128, samples=16, moving_height=128) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=128, samples=16, moving_shadows="PER_FRAME", moving_height=128) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
     assert "(baked, cycles)" in capfd.readouterr().out and not floor.is_shadow_catcher
     scene.frame_set(FRAMES[1])
@@ -315,7 +315,7 @@ def test_motion_blur_blurs_a_moving_ball_s_shadow_as_the_shutter_sweeps_it(bpy_c
     scene.render.use_motion_blur = True
     shutter = scene.render.motion_blur_shutter              # centred on the frame (Blender's default)
 
-    assert bpy.ops.platelight.bake_shadows(height=64, samples=8, moving_height=64) == {"FINISHED"}
+    assert bpy.ops.platelight.bake_shadows(height=64, samples=8, moving_shadows="PER_FRAME", moving_height=64) == {"FINISHED"}
     capfd.readouterr()
     assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
     said = capfd.readouterr().out
