@@ -76,8 +76,8 @@ def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
     ``is_current`` (does the bake fit the scene, given the names of the CG that moves) are called
     only where a bake could be used: both walk the scene. A bake that left the moving CG out
     serves the still CG, the moving CG's shadows rendered by a catcher every frame (MIXED), or
-    looked up as baked at every frame where ``moving_baked`` says so (BAKED). Raises PlateLightError, having changed nothing, where what was
-    asked cannot be done."""
+    looked up as baked at every frame where ``moving_baked`` says so (BAKED). Raises
+    PlateLightError, having changed nothing, where what was asked cannot be done."""
     if method == "BAKED" and not baked:
         raise PlateLightError("The Baked Shadows method needs the shot's shadows: run Bake "
                               "Shadows (platelight.bake_shadows) first.")
@@ -115,7 +115,7 @@ def choose_route(method: str, engine: str, *, baked: bool, motion_blur: bool,
             reports.append(("WARNING", sentence.format("the moving CG's shadows stay sharp")))
     if method == "AUTO":
         method = ("BAKED" if not moving or moving_baked() else "MIXED") if current else "CATCHER"
-        if moving and not current:
+        if moving and not current and not unblurred:     # (the blur's sentence said why)
             reports.append(("WARNING", f"{first.sentence()}: the Shadow Catcher renders the shadows "
                             "every frame instead of the baked ones."))
     if engine == "EEVEE":
