@@ -87,6 +87,13 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         links.new(socket, mix.b)
         return mix.result
 
+    def caught(source, y):
+        """``source``'s Shadow Catcher pass, denoised (where it is not 1) when asked."""
+        catcher = source.outputs["Shadow Catcher"]
+        if denoise_shadows:
+            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, y)), (-300, y + 50))
+        return catcher
+
     cg_image = cg.outputs["Image"]
     if denoise_cg:
         # Only where the CG covers the pixel: OIDN knows no alpha, so on an edge it mixed the
@@ -101,10 +108,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         source = cg
         if method == "LAYERED":              # the shadows from their own layer and samples
             source = _render_layer(nodes, scene, names.LAYER_SHADOWS, (-600, -300))
-        catcher = source.outputs["Shadow Catcher"]
-        if denoise_shadows:
-            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, -250)), (-300, -200))
-        links.new(catcher, diff.inputs["With"])
+        links.new(caught(source, -250), diff.inputs["With"])
     elif method == "BAKED":
         # the phantoms emit the baked ratio; elsewhere (alpha 0: no phantom) the ratio is 1
         source = _render_layer(nodes, scene, names.LAYER_SHADOWS, (-600, -300))
@@ -119,10 +123,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         weight.location = (-450, -450)
         links.new(aov, weight.inputs["Image"])
         baked_ratio = _covered_ratio(nodes, aov, weight.outputs["Alpha"], CATCHER_AOV_WEIGHT, (-300, -300))
-        moving = _render_layer(nodes, scene, names.LAYER_MOVING_SHADOWS, (-600, -700))
-        catcher = moving.outputs["Shadow Catcher"]
-        if denoise_shadows:
-            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, -650)), (-300, -600))
+        catcher = caught(_render_layer(nodes, scene, names.LAYER_MOVING_SHADOWS, (-600, -700)), -650)
         product = compat.compositor_mix(nodes, blend="MULTIPLY")
         product.node.location = (-100, -400)
         product.factor.default_value = 1.0

@@ -179,8 +179,8 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
 
     if route.shadows == BAKED_SHADOWS:
         current = choice.current
-        if current is None:         # BAKED asked for by name: not hashed yet
-            current = baked_is_current(scene)
+        if current is None:         # BAKED asked for by name, nothing moving (choose_route saw): not hashed yet
+            current = baked_is_current(scene, frozenset())
         if not current:
             reports.append(("WARNING", "The baked shadows do not match the scene any more (an "
                             "object, the world or a setting changed): run Bake Shadows again."))
