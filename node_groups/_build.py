@@ -188,3 +188,30 @@ def action_fcurves(idblock) -> list:
         return []
     channelbag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
     return list(channelbag.fcurves) if channelbag is not None else []
+
+
+def hold_per_frame(socket, values: dict) -> None:
+    """Key ``socket``'s value to ``values`` ({frame: value}), held constant between frames as the
+    per-frame maps it goes with are (image sequences: frame F reads file F)."""
+    tree = socket.id_data
+    for frame, value in sorted(values.items()):
+        socket.default_value = value
+        socket.keyframe_insert("default_value", frame=frame)
+    path = socket.path_from_id("default_value")
+    for curve in action_fcurves(tree):
+        if curve.data_path == path:
+            for point in curve.keyframe_points:
+                point.interpolation = "CONSTANT"
+
+
+def drop_keys(tree, node_names) -> None:
+    """Remove the keys on the named nodes' sockets (a rebind's values replace them)."""
+    prefixes = tuple(f'nodes["{name}"].' for name in node_names)
+    animation = tree.animation_data
+    if animation is None or animation.action is None:
+        return
+    from bpy_extras import anim_utils
+
+    channelbag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    for curve in [c for c in action_fcurves(tree) if c.data_path.startswith(prefixes)]:
+        channelbag.fcurves.remove(curve)

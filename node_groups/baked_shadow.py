@@ -14,7 +14,7 @@ import bpy
 
 from .. import compat
 from ..addon import names
-from ._build import (Graph, action_fcurves, io_nodes, shader_group, strength_against_film_exposure,
+from ._build import (Graph, hold_per_frame, io_nodes, shader_group, strength_against_film_exposure,
                      sync_interface)
 from .probe_maps import SEQUENCE_FRAMES
 
@@ -58,7 +58,8 @@ def baked_ratio_group(ratio_path: str | None = None, distance_path: str | None =
     if moving:
         origin = g.node("ShaderNodeCombineXYZ")
         origin.name = origin.label = "Moving Panorama Centre"
-        _key_per_frame(tree, origin, moving["centres"])
+        for index, axis in enumerate("XYZ"):
+            hold_per_frame(origin.inputs[axis], {f: float(c[index]) for f, c in moving["centres"].items()})
         moving_ratio = _panorama_ratio(g, moving["ratio"], moving["distance"], origin.outputs["Vector"],
                                        sequence=True)
         # where both shadows fall, the light left is the product of what each leaves
@@ -92,18 +93,6 @@ def _panorama_ratio(g, ratio_path, distance_path, origin, sequence):
     seen = seen_at(g, g.vmath("LENGTH", offset), stored.outputs["Red"])
     change = g.vmath("SCALE", ratio_minus_one, scale=seen)
     return g.vmath("ADD", change, (1.0, 1.0, 1.0))
-
-
-def _key_per_frame(tree, node, values):
-    """Key ``node``'s X, Y and Z inputs to ``values`` ({frame: (x, y, z)}), held constant between
-    frames as the per-frame panoramas are."""
-    for frame, value in sorted(values.items()):
-        for axis, v in zip("XYZ", value):
-            node.inputs[axis].default_value = float(v)
-            node.inputs[axis].keyframe_insert("default_value", frame=frame)
-    for curve in action_fcurves(tree):
-        for point in curve.keyframe_points:
-            point.interpolation = "CONSTANT"
 
 
 def ensure_ratio_group():

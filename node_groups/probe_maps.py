@@ -22,7 +22,7 @@ from ..addon.bake.layout import WORLD_FOLDER, read_record
 from ..addon.ibl import irradiance_grid, sun_lobe, view_lobe
 from ..addon.ibl.distance import BEHIND_MAPS, DISTANCE_NAME, behind_filename, behind_filenames, behind_name, distance_filename
 from ..addon.ibl.maps import MAP_NAMES, map_filename
-from ._build import VERSION_KEY, sync_interface
+from ._build import VERSION_KEY, drop_keys, hold_per_frame, sync_interface
 from . import template_cache
 from .probe_nodes import DISTANCE_BEHIND, build as build_nodes
 from .sbrdf import LOOKUP_SOCKETS
@@ -187,7 +187,6 @@ def bind_images(tree):
     frame = first if kind == "sequence" else None
     records = _frame_records(path, kind)
     tree = _build_if_needed(tree, _behind_on(path, records))
-    record = records.get(frame, {})
     sun = _steady_sun(path, records)
     ladder = _ladder_on(path, records, sun)
     for node in tree.nodes:
@@ -236,8 +235,9 @@ def bind_images(tree):
     view_switch = tree.nodes.get(names.VIEW_LOBE_NODE)
     if view_switch is not None:
         view_switch.outputs[0].default_value = 1.0 if ladder else 0.0
-    _bind_parallax(tree, record)
-    _bind_grid(tree, record, sun, moving=kind == "sequence" and _grid_moves(path))
+    drop_keys(tree, (names.PROBE_CENTRE_NODE, *GRID_NODES))   # an earlier binding's frames
+    _bind_parallax(tree, records)
+    _bind_grid(tree, records, sun)
     return tree
 
 
@@ -251,20 +251,29 @@ def _has_baked(tree, map_name):
     return node is not None and is_baked(node.image)
 
 
-def _bind_parallax(tree, record):
-    """The probe's centre (from its bake record) and the parallax switch: on when the scene asks
-    for it (scene.platelight.probe_parallax) and the folder has a distance map and a centre."""
+def _bind_parallax(tree, records):
+    """The probe's centre (from its bake records: each frame's where an object moves over a baked
+    sequence) and the parallax switch: on when the scene asks for it (scene.platelight.
+    probe_parallax) and the folder has a distance map and every frame a centre."""
     centre_node, switch = tree.nodes.get(names.PROBE_CENTRE_NODE), tree.nodes.get(names.PARALLAX_NODE)
     if centre_node is None or switch is None:
         return
-    origin = record.get("origin")
-    if origin is not None:
-        for axis, value in zip("XYZ", origin):
-            centre_node.inputs[axis].default_value = float(value)
-    on = _scene_setting("probe_parallax") and _has_baked(tree, DISTANCE_NAME) and origin is not None
+    origins = {frame: record.get("origin") for frame, record in records.items()}
+    on = bool(origins) and all(o is not None for o in origins.values())
+    if on:
+        for index, axis in enumerate("XYZ"):
+            _hold(centre_node.inputs[axis], {f: float(o[index]) for f, o in origins.items()})
+    on = on and _scene_setting("probe_parallax") and _has_baked(tree, DISTANCE_NAME)
     switch.outputs[0].default_value = 1.0 if on else 0.0
 
 
+def _hold(socket, values):
+    """``socket`` set to its one value, or keyed per frame where the frames' values differ (a
+    moving object's probe centre and grid box: the frame's own, not the first's)."""
+    if len(set(values.values())) > 1:
+        hold_per_frame(socket, values)
+    else:
+        socket.default_value = next(iter(values.values()))
 
 
 def _behind_on(path, records) -> bool:
@@ -342,37 +351,32 @@ def _bind_sun(tree, sun):
     angle.outputs[0].default_value = float(sun.angle) if sun else 0.0
 
 
-def _grid_moves(path) -> bool:
-    """Does the irradiance grid's box change over a sequence's frames (a moving object)?"""
-    boxes = set()
-    for frame in _sequence_frames(path).get("diffuse", []):
-        grid = read_record(path, frame).get(irradiance_grid.RECORD_KEY)
-        if isinstance(grid, dict):
-            boxes.add(tuple(round(float(v), 5) for v in [*grid["lo"], *grid["hi"]]))
-    return len(boxes) > 1
-
-
-def _bind_grid(tree, record, sun, moving=False):
-    """The irradiance grid's box and shape (from the bake record) and its switch: on when the
-    scene asks for it (scene.platelight.probe_diffuse_parallax), the folder has a grid and the
-    grid lacks the sun exactly when the group adds it (``sun``; as the ladder's rungs). The
-    group holds one box (the first frame's), so an object that moves over a baked sequence
-    (``moving``) reads the paper's diffuse map of each frame instead: a box left behind would
-    clamp every shading point to its far face."""
+def _bind_grid(tree, records, sun):
+    """The irradiance grid's box and shape (from the bake records, keyed per frame where an object
+    moves over a baked sequence: a box left behind would clamp every shading point to its far
+    face) and its switch: on when the scene asks for it (scene.platelight.probe_diffuse_parallax),
+    the folder has a grid and every frame's grid lacks the sun exactly when the group adds it
+    (``sun``; as the ladder's rungs)."""
     nodes = [tree.nodes.get(name) for name in GRID_NODES]
     if any(node is None for node in nodes):
         return
     switch, lo_node, scale_node, points_node, height_node = nodes
-    grid = record.get(irradiance_grid.RECORD_KEY)
+    grids = {frame: record.get(irradiance_grid.RECORD_KEY) for frame, record in records.items()}
     on = _scene_setting("probe_diffuse_parallax") and _has_baked(tree, irradiance_grid.GRID_NAME) \
-        and isinstance(grid, dict) and not moving and bool(grid.get("sunless")) == (sun is not None)
+        and bool(grids) and all(isinstance(g, dict) and bool(g.get("sunless")) == (sun is not None)
+                                for g in grids.values())
     if on:
-        for axis, low, high in zip("XYZ", grid["lo"], grid["hi"]):
-            lo_node.inputs[axis].default_value = float(low)
-            scale_node.inputs[axis].default_value = 1.0 / (high - low) if high > low else 0.0
-        points_node.outputs[0].default_value = float(grid["points"])
-        height_node.outputs[0].default_value = float(grid["height"])
+        for index, axis in enumerate("XYZ"):
+            _hold(lo_node.inputs[axis], {f: float(g["lo"][index]) for f, g in grids.items()})
+            _hold(scale_node.inputs[axis], {f: _inverse_span(g, index) for f, g in grids.items()})
+        _hold(points_node.outputs[0], {f: float(g["points"]) for f, g in grids.items()})
+        _hold(height_node.outputs[0], {f: float(g["height"]) for f, g in grids.items()})
     switch.outputs[0].default_value = 1.0 if on else 0.0
+
+
+def _inverse_span(grid, axis) -> float:
+    low, high = float(grid["lo"][axis]), float(grid["hi"][axis])
+    return 1.0 / (high - low) if high > low else 0.0
 
 
 def set_parallax() -> int:

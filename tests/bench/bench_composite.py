@@ -280,8 +280,8 @@ def psnr(a, b, mask, peak):
     return float(10 * np.log10(peak ** 2 / max(err, 1e-20)))
 
 
-def masks(truth, plate):
-    """object: pixels whose centre ray meets the sphere (analytic, eroded a pixel);
+def masks(truth, plate, centre=SPHERE[0]):
+    """object: pixels whose centre ray meets the sphere at ``centre`` (analytic, eroded a pixel);
     shadow: floor pixels the truth shows more than 3 % darker than the plate."""
     import cv2
     import bpy
@@ -298,7 +298,7 @@ def masks(truth, plate):
     origin = np.array(cam.matrix_world.translation)
     d = pts - origin
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    oc = origin - SPHERE[0]
+    oc = origin - np.asarray(centre)
     b = d @ oc
     hit = b * b - (oc @ oc - SPHERE[1] ** 2) >= 0
     obj = cv2.erode(hit.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)

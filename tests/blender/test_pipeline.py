@@ -32,6 +32,7 @@ import pytest
 from sbrdf_reference import fresnel
 import support
 from bake_scenes import material
+from platelight.addon.ibl import irradiance_grid
 from platelight.addon.ibl.lobe_tilt import tilt_offset
 from sbrdf_scene import noise_free_emission_render
 from support import EXT_MODULE
@@ -623,15 +624,7 @@ def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path,
         write_exr(tmp_path / "world.exr", world)
         bpy.data.images["world.exr"].reload()
         scene.platelight.probe_sun_lobe = True
-    scene.platelight.probe_diffuse_parallax = True
-    select_only(bpy, sphere)
-    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
-    node = sphere.active_material.node_tree.nodes["PlateLight SBRDF"]
-    albedo = (0.7, 0.5, 0.3)
-    node.inputs["Diffuse Albedo"].default_value = (*albedo, 1.0)
-    node.inputs["Specular Albedo"].default_value = (0.0, 0.0, 0.0, 1.0)
-    node.inputs["Fresnel Falloff"].default_value = 0.0
-    node.inputs["Glossiness"].default_value = 0.0
+    matte_grid_sphere(bpy, scene, sphere)
     assert bpy.ops.platelight.bake_probes(all_objects=True) == {"FINISHED"}
     folder = bpy.path.abspath(sphere.platelight.probe_dir)
     record = json.loads(open(os.path.join(folder, "bake.json")).read())
@@ -648,7 +641,78 @@ def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path,
     np.testing.assert_allclose(grid["hi"], [1 - ig.INSET * 2] * 3, atol=0.01)
     np.testing.assert_allclose(grid["lo"], [-1 + ig.INSET * 2] * 3, atol=0.01)
 
-    def reference(normals):          # the unit sphere at the origin: the shading point is N
+    image = render(bpy, tmp_path, "grid.exr")
+    assert_matches(image, grid_reference(folder, record, sun), sphere_normals())
+    if sun is not None:
+        del record[ig.RECORD_KEY]["sunless"]
+        open(os.path.join(folder, "bake.json"), "w").write(json.dumps(record))
+        probe_maps = importlib.import_module(f"{support.EXT_MODULE}.node_groups.probe_maps")
+        probe_maps.set_parallax()
+        group = bpy.data.node_groups[pl_names.PROBE_GROUP_PREFIX + "Sphere"]
+        assert group.nodes[pl_names.DIFFUSE_PARALLAX_NODE].outputs[0].default_value == 0.0
+        return
+    # not the paper's centre look-up: the lower half sees the red floor from close by
+    centre = np.array(MATTE_ALBEDO) * _lookup(read_maps(bpy, sphere)["diffuse"], sphere_normals())
+    inside = np.isfinite(centre[..., 0])
+    assert np.abs(image[..., :3] - centre)[inside].max() > 0.02
+
+
+def test_a_moving_object_reads_each_frames_own_grid(bpy_clean, tmp_path, studio_hdris):
+    """Over a baked sequence in which the object moves, the probe group keys each frame's grid box
+    (its bake record's): on the last frame the render is that frame's grid blend as numpy reads
+    it, where the first frame's box, 0.6 m away, would clamp every shading point to its face."""
+    from platelight.addon import names as pl_names
+    from platelight.addon.bake.layout import read_record
+
+    bpy = bpy_clean
+    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["sunset"], cube_enabled=False)
+    matte_grid_sphere(bpy, scene, sphere)
+    scene.platelight.probe_sun_lobe = False
+    for frame, location in ((1, (0.6, 0.0, 0.0)), (2, (0.0, 0.0, 0.0))):
+        sphere.location = location
+        sphere.keyframe_insert("location", frame=frame)
+    assert bpy.ops.platelight.bake_probes(all_objects=True, frame_start=1, frame_end=2) == {"FINISHED"}
+    folder = bpy.path.abspath(sphere.platelight.probe_dir)
+    group = bpy.data.node_groups[pl_names.PROBE_GROUP_PREFIX + "Sphere"]
+    assert group.nodes[pl_names.DIFFUSE_PARALLAX_NODE].outputs[0].default_value == 1.0
+    lo = group.nodes[pl_names.GRID_LO_NODE].inputs
+    for frame in (1, 2):
+        scene.frame_set(frame)
+        grid = read_record(folder, frame)[irradiance_grid.RECORD_KEY]
+        assert [lo[axis].default_value for axis in "XYZ"] == pytest.approx(grid["lo"], abs=1e-5)
+    image = render(bpy, tmp_path, "grid_2.exr")
+    assert_matches(image, grid_reference(folder, read_record(folder, 2), None, frame=2), sphere_normals())
+
+
+MATTE_ALBEDO = (0.7, 0.5, 0.3)
+
+
+def matte_grid_sphere(bpy, scene, sphere):
+    """The sphere's SBRDF a matte MATTE_ALBEDO with Diffuse Parallax on: the render is the
+    albedo times the grid blend (grid_reference)."""
+    scene.platelight.probe_diffuse_parallax = True
+    select_only(bpy, sphere)
+    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
+    node = sphere.active_material.node_tree.nodes["PlateLight SBRDF"]
+    node.inputs["Diffuse Albedo"].default_value = (*MATTE_ALBEDO, 1.0)
+    node.inputs["Specular Albedo"].default_value = (0.0, 0.0, 0.0, 1.0)
+    node.inputs["Fresnel Falloff"].default_value = 0.0
+    node.inputs["Glossiness"].default_value = 0.0
+
+
+def grid_reference(folder, record, sun, frame=None):
+    """numpy's render of matte_grid_sphere's unit sphere at the origin (the shading point is N):
+    the trilinear blend of the record's grid maps around it (irradiance_grid.trilinear, atlas_uv,
+    an Image Texture's bilinear filter) read along N, plus the sun's Lambert term."""
+    from platelight.addon.exr_io import read_exr
+    from platelight.addon.ibl import sun_lobe
+
+    ig = irradiance_grid
+    grid = record[ig.RECORD_KEY]
+    n, height = grid["points"], grid["height"]
+    atlas = read_exr(os.path.join(folder, ig.grid_filename(frame)), "RGB").astype(np.float64)
+
+    def reference(normals):
         points = np.nan_to_num(normals)
         tiles, weights = ig.trilinear(np.array(grid["lo"]), np.array(grid["hi"]), n, points)
         d = _unit(points + (points == 0).all(axis=-1, keepdims=True))
@@ -660,51 +724,9 @@ def test_diffuse_parallax_renders_the_irradiance_grid_blend(bpy_clean, tmp_path,
             total = total + weights[..., k:k + 1] * _image_lookup(atlas, x, y)
         if sun is not None:
             total = total + sun_lobe.lambert(np.nan_to_num(normals), sun)
-        return np.array(albedo) * total, {"N": (normals, height)}
+        return np.array(MATTE_ALBEDO) * total, {"N": (normals, height)}
 
-    image = render(bpy, tmp_path, "grid.exr")
-    assert_matches(image, reference, sphere_normals())
-    if sun is not None:
-        del record[ig.RECORD_KEY]["sunless"]
-        open(os.path.join(folder, "bake.json"), "w").write(json.dumps(record))
-        probe_maps = importlib.import_module(f"{support.EXT_MODULE}.node_groups.probe_maps")
-        probe_maps.set_parallax()
-        group = bpy.data.node_groups[pl_names.PROBE_GROUP_PREFIX + "Sphere"]
-        assert group.nodes[pl_names.DIFFUSE_PARALLAX_NODE].outputs[0].default_value == 0.0
-        return
-    # not the paper's centre look-up: the lower half sees the red floor from close by
-    centre = np.array(albedo) * _lookup(read_maps(bpy, sphere)["diffuse"], sphere_normals())
-    inside = np.isfinite(centre[..., 0])
-    assert np.abs(image[..., :3] - centre)[inside].max() > 0.02
-
-
-def test_a_moving_object_reads_each_frames_centre_map_instead_of_the_grid(bpy_clean, tmp_path, studio_hdris):
-    """The probe group holds one grid box (the first frame's): over a baked sequence in which the
-    object moves, its diffuse look-up falls back to each frame's own centre map (the switch is
-    off); a still object in a sequence keeps the grid."""
-    from platelight.addon import names as pl_names
-
-    bpy = bpy_clean
-    scene, sphere, cube, plane = build_scene(bpy, tmp_path, studio_hdris["sunset"], cube_enabled=False)
-    scene.platelight.probe_diffuse_parallax = True
-    select_only(bpy, sphere)
-    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
-    node = sphere.active_material.node_tree.nodes["PlateLight SBRDF"]
-    node.inputs["Specular Albedo"].default_value = (0.0, 0.0, 0.0, 1.0)
-    node.inputs["Fresnel Falloff"].default_value = 0.0
-
-    def grid_switch():
-        group = bpy.data.node_groups[pl_names.PROBE_GROUP_PREFIX + "Sphere"]
-        return group.nodes[pl_names.DIFFUSE_PARALLAX_NODE].outputs[0].default_value
-
-    assert bpy.ops.platelight.bake_probes(all_objects=True, frame_start=1, frame_end=2) == {"FINISHED"}
-    assert grid_switch() == 1.0                                   # still: one box serves
-    sphere.location = (0.0, 0.0, 0.0)
-    sphere.keyframe_insert("location", frame=1)
-    sphere.location = (0.6, 0.0, 0.0)
-    sphere.keyframe_insert("location", frame=2)
-    assert bpy.ops.platelight.bake_probes(all_objects=True, frame_start=1, frame_end=2) == {"FINISHED"}
-    assert grid_switch() == 0.0                                   # moving: each frame's own map
+    return reference
 
 
 def test_packed_parallax_look_ups_render_after_the_blend_moves(bpy_clean, tmp_path, studio_hdris):
