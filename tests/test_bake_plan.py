@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import support  # noqa: F401  (imports this checkout as `platelight`)
-from platelight.addon.bake import culling, frames, hashing, layout, needs
+from platelight.addon.bake import culling, frames, hashing, layout, needs, probe_reuse
 from platelight.addon.errors import PlateLightError
 from platelight.addon.ibl.maps import MAP_GLOSSINESS, MAP_NAMES, footprint_glossiness, map_weights, tent_weights
 
@@ -269,3 +269,26 @@ def test_remove_other_maps_keeps_needed_and_other_frames(tmp_path):
         (tmp_path / name).write_bytes(b"x")
     assert layout.remove_other_maps(str(tmp_path), None, keep=("diffuse",)) == ["glossy1", "specular"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["diffuse.exr", "notes.txt", "specular_0002.exr"]
+
+
+def test_probe_reuse_measures_travel_and_turn_in_bounding_radii():
+    corners = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    radius = np.sqrt(3)
+    # travel: the centre's distance over the radius
+    assert probe_reuse.moved(corners + (0.3, 0, 0), (0.3, 0, 0), corners, (0, 0, 0), radius) == \
+        pytest.approx(0.3 / radius)
+    # turn about the centroid by 20 degrees: a corner moves 2 r sin(10 degrees)
+    a = np.radians(20)
+    turned = corners @ np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]]).T
+    assert probe_reuse.moved(turned, (0, 0, 0), corners, (0, 0, 0), radius) == \
+        pytest.approx(2 * np.sin(a / 2) * np.hypot(1, 1) / radius)
+    # the larger of the two; surfaces that do not correspond, or no size, never reuse
+    assert probe_reuse.moved(turned + (0.1, 0, 0), (0.1, 0, 0), corners, (0, 0, 0), radius) == \
+        pytest.approx(2 * np.sin(a / 2) * np.hypot(1, 1) / radius)
+    assert probe_reuse.moved(corners[:7], (0, 0, 0), corners, (0, 0, 0), radius) == float("inf")
+    assert probe_reuse.moved(corners, (0, 0, 0), corners, (0, 0, 0), 0.0) == float("inf")
+    rendered = {"points": corners, "origin": (0, 0, 0)}
+    assert probe_reuse.reusable(corners + (0.2, 0, 0), (0.2, 0, 0), rendered, radius, 0.25)
+    assert not probe_reuse.reusable(corners + (0.5, 0, 0), (0.5, 0, 0), rendered, radius, 0.25)
+    assert not probe_reuse.reusable(corners, (0, 0, 0), rendered, radius, 0.0)      # 0: every frame
+    assert not probe_reuse.reusable(corners, (0, 0, 0), None, radius, 0.25)         # nothing rendered yet

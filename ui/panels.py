@@ -55,7 +55,7 @@ class PLATELIGHT_PT_scene(bpy.types.Panel):
         for name in ("world_probe", "maps_dir", "pack_maps"):
             layout.prop(settings, name)
         col = layout.column(heading="Probes")
-        for name in ("probe_height", "probe_auto_size", "probe_max_height", "probe_samples", "probe_fast_world", "probe_owner_shadows", "probe_parallax", "probe_behind", "probe_diffuse_parallax", "probe_sun_lobe", "probe_distance", "sampling", "glossy_lobes"):
+        for name in ("probe_height", "probe_auto_size", "probe_max_height", "probe_samples", "probe_fast_world", "probe_owner_shadows", "probe_parallax", "probe_behind", "probe_diffuse_parallax", "probe_sun_lobe", "probe_distance", "probe_reuse", "sampling", "glossy_lobes"):
             col.prop(settings, name)
         col = layout.column(align=True)
         col.operator(BAKE_OP, text="Bake All Probes (Current Frame)",

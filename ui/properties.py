@@ -5,6 +5,7 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
 
+from ..addon.bake.probe_reuse import DEFAULT_TOLERANCE as PROBE_REUSE_DEFAULT
 from .registration import register_classes, unregister_classes
 
 
@@ -109,6 +110,14 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         description="Probes see objects up to this far away; objects farther off neither appear "
         "in a probe nor make it stale when they move",
         default=1000.0, min=0.01, soft_max=10000.0, unit="LENGTH",
+    )
+    probe_reuse: FloatProperty(
+        name="Probe Reuse",
+        description="Over a frame range, a moving object's probe is rendered again only once the "
+        "object has moved or turned by more than this fraction of its size since the last one "
+        "(or anything it sees changed); the frames between reuse that probe from its own centre. "
+        "0: a probe every frame",
+        default=PROBE_REUSE_DEFAULT, min=0.0, soft_max=1.0,
     )
     probe_fast_world: BoolProperty(
         name="Fast World Sampling",

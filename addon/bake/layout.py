@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import tempfile
 
 from ..errors import PlateLightError
@@ -73,6 +74,25 @@ def write_record(folder: str, frame: int | None, digest: str, maps, **extra) -> 
                           {"hash": digest, "maps": list(maps), **extra})
     except PlateLightError:
         raise PlateLightError(f"Cannot write the bake record in {folder}.") from None
+
+
+def copy_frame(folder: str, source: int, frame: int) -> list[str]:
+    """Give ``frame`` the maps and look-up files of ``source`` (a probe reused for a frame in which
+    its object moved little, probe_reuse.py): each copied whole (a copy, not a link: a later bake
+    of either frame rewrites its file in place), and a file of ``frame`` that ``source`` lacks
+    deleted, so no stale look-up is read with the copied maps. Returns the files written."""
+    written = []
+    for src, dst in zip([map_filename(n, source) for n in MAP_NAMES] + lookup_filenames(source),
+                        [map_filename(n, frame) for n in MAP_NAMES] + lookup_filenames(frame)):
+        src, dst = os.path.join(folder, src), os.path.join(folder, dst)
+        if os.path.isfile(src):
+            tmp = dst + ".part"
+            shutil.copyfile(src, tmp)
+            os.replace(tmp, dst)
+            written.append(os.path.basename(dst))
+        elif os.path.isfile(dst):
+            os.unlink(dst)
+    return written
 
 
 def remove_other_maps(folder: str, frame: int | None, keep) -> list[str]:

@@ -18,7 +18,7 @@ import os
 import bpy
 import numpy as np
 
-from ...addon.bake import culling, layout, needs, probe_size
+from ...addon.bake import culling, layout, needs, probe_reuse, probe_size
 from ...addon.bake.frames import sample_frames
 from ...addon.bake.hashing import content_hash
 from ...addon.errors import PlateLightError
@@ -35,6 +35,8 @@ from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
 from .records import pack_maps, probe_hash, world_maps_hash
 from .scene_state import SceneState
 from ..world_environment import probe_image
+
+REUSE_KEY = "reused"          # in a frame's record: {"frame": whose probe it took, "tolerance": Probe Reuse}
 
 # needs.owner_visibility's answer -> the ProbeRenderer.render argument that places the owner.
 OWNER_RENDER_ARGUMENT = {needs.OWNER_HIDDEN: "hidden", needs.OWNER_SHADOWS: "shadow_only",
@@ -66,6 +68,8 @@ class ProbeBake:
         self.cull = cull
         self.baked = []                          # (object name, frame)
         self.reused = []
+        self.reused_near = []                    # (object name, frame, the frame whose probe it took)
+        self._rendered = {}                      # object name -> its last rendered probe (probe_reuse)
         self.skipped = []                        # (object name, why)
         self.world_only = []
         self.stale = []                          # (object name, frame), check_only
@@ -320,13 +324,19 @@ class ProbeBake:
         wants_behind = wants_behind_layer(ob, maps, self.scene.platelight, distance_height(
             height or self.scene.platelight.probe_height))
         digest = self.probe_hash(ob, origin, maps, owner, wants_grid, wants_behind)
-        if self.use_cache and layout.is_cached(folder, key_frame, digest, maps):
+        inputs = (maps, owner, wants_grid, wants_behind)
+        reused_from = layout.read_record(folder, key_frame).get(REUSE_KEY) if self.use_cache else None
+        if self.use_cache and layout.is_cached(folder, key_frame, digest, maps) and self._reuse_holds(reused_from):
             self.reused.append((ob.name, frame))
             status = "baked (unchanged)"
+            if not reused_from:
+                self._remember_render(ob, frame, origin, digest, inputs)
         elif self.check_only:
             self.stale.append((ob.name, frame))
             ob.platelight.probe_status = "stale"
             return
+        elif self._reuse_render(ob, frame, folder, origin, digest, inputs):
+            status = "baked"
         else:
             # the glossy look-ups and the diffuse grid both see the scene through the distance map
             wants_distance = wants_grid or any(name != "diffuse" for name in maps)
@@ -357,6 +367,7 @@ class ProbeBake:
                                 origin=[float(x) for x in origin],
                                 probe_size=[int(env.shape[1]), int(env.shape[0])], **grid, **sun)
             self.baked.append((ob.name, frame))
+            self._remember_render(ob, frame, origin, digest, inputs)
             status = "baked"
         if self.check_only:
             if not any(name == ob.name for name, _ in self.stale):
@@ -370,6 +381,40 @@ class ProbeBake:
         self._note_bound(ob, status == "baked")
         ob.platelight.probe_hash = digest
         ob.platelight.probe_status = status if self.static else f"{status} (frames {self.frames[0]}-{self.frames[-1]})"
+
+    def _remember_render(self, ob, frame, origin, digest, inputs):
+        """Keep what a later frame needs to reuse this frame's probe (probe_reuse.py)."""
+        if self.static or self.scene.platelight.probe_reuse <= 0:
+            return
+        self._rendered[ob.name] = {
+            "frame": frame, "origin": np.asarray(origin, dtype=np.float64), "digest": digest, "inputs": inputs,
+            "points": surface_points(ob, self.context.evaluated_depsgraph_get()), "radius": self.bounds(ob)[1]}
+
+    def _reuse_holds(self, reused_from) -> bool:
+        """A frame that took another's probe (its record's ``reused_from``) stays valid only under
+        the Probe Reuse it was made with."""
+        return not reused_from or reused_from.get("tolerance") == self.scene.platelight.probe_reuse
+
+    def _reuse_render(self, ob, frame, folder, origin, digest, inputs) -> bool:
+        """Give this frame the last rendered probe of ``ob`` when the object has moved little since
+        (Probe Reuse) and all else it sees is the same: the same inputs hash from that centre.
+        The record keeps the rendered centre, where the panorama's look-ups start."""
+        rendered = self._rendered.get(ob.name)
+        if rendered is None or rendered["inputs"] != inputs:
+            return False
+        tolerance = self.scene.platelight.probe_reuse
+        points = surface_points(ob, self.context.evaluated_depsgraph_get())
+        if not probe_reuse.reusable(points, origin, rendered, rendered["radius"], tolerance):
+            return False
+        if self.probe_hash(ob, rendered["origin"], *inputs) != rendered["digest"]:
+            return False                 # something else it sees has changed since
+        source = rendered["frame"]
+        layout.copy_frame(folder, source, frame)
+        record = {k: v for k, v in layout.read_record(folder, source).items() if k not in ("hash", "maps")}
+        record.update(scene_frame=frame, **{REUSE_KEY: {"frame": source, "tolerance": tolerance}})
+        layout.write_record(folder, frame, digest, inputs[0], **record)
+        self.reused_near.append((ob.name, frame, source))
+        return True
 
     def _bake_lookup_maps(self, folder, env, settings, maps, key_frame):
         """The files the probe group reads beside the maps, each only when the scene asks for it:
@@ -522,6 +567,8 @@ class ProbeBake:
         parts = []
         if self.baked:
             parts.append(f"baked {len(self.baked)} probe(s)")
+        if self.reused_near:
+            parts.append(f"{len(self.reused_near)} frame(s) took the probe of a frame before (moved little)")
         if self.reused:
             parts.append(f"reused {len(self.reused)} unchanged")
         if self.world_only:

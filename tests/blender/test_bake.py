@@ -136,6 +136,62 @@ def test_frame_range_writes_per_frame_maps_of_a_moving_object(bpy_clean, tmp_pat
     assert owner.platelight.probe_status.startswith("baked (frames 1-3)")
 
 
+def test_a_slowly_moving_object_reuses_its_probe_until_it_has_moved_a_quarter_of_its_size(bpy_clean, tmp_path):
+    """Probe Reuse: over a frame range a probe is rendered again only once its object has moved
+    more than Probe Reuse bounding radii since the last one; a frame between takes that probe whole,
+    with its centre (the group's parallax look-ups start there). A second bake renders nothing;
+    Probe Reuse 0 renders the frames that reused, and only those."""
+    from platelight.addon.bake.layout import read_record
+    from platelight.addon.names import PROBE_CENTRE_NODE, PROBE_GROUP_PREFIX
+    from platelight.operators.bake.inputs import world_bounds
+
+    bpy = bpy_clean
+    scene = new_scene(bpy, tmp_path, world_color=(0.2, 0.3, 0.4))
+    add_plane(bpy, "Floor", (0, 0, -0.5), color=(0.8, 0.1, 0.1), phantom=True)
+    owner = add_sphere(bpy, "Owner", (0, 0, 0))
+    for frame, x in ((1, 0.0), (7, 0.9)):
+        owner.location = (x, 0, 0)
+        owner.keyframe_insert("location", frame=frame)
+    bpy.context.view_layer.objects.active = owner
+    assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
+    radius = world_bounds(owner)[1]
+    renders = probe_renders()
+    bake(bpy, all_objects=True, frame_start=1, frame_end=7, cull=False)
+    rendered = probe_renders() - renders
+    folder = maps_folder(tmp_path, "Owner")
+    records = {f: read_record(str(folder), f) for f in range(1, 8)}
+    took = {f: r["reused"]["frame"] for f, r in records.items() if "reused" in r}
+    assert took and rendered == 7 - len(took)
+    last = None
+    for frame in range(1, 8):
+        scene.frame_set(frame)
+        here = np.array(owner.matrix_world.translation)
+        if frame in took:                      # within a quarter of its size of the probe it took
+            source = took[frame]
+            assert source not in took and source < frame
+            assert np.linalg.norm(here - records[source]["origin"]) <= 0.25 * radius + 1e-6
+            assert records[frame]["origin"] == records[source]["origin"]
+            for name in ("diffuse", "specular", "distance"):
+                assert (folder / f"{name}_{frame:04d}.exr").read_bytes() == \
+                    (folder / f"{name}_{source:04d}.exr").read_bytes()
+        else:                                  # rendered: it had moved too far from the last one
+            if last is not None:
+                assert np.linalg.norm(here - records[last]["origin"]) > 0.25 * radius
+            last = frame
+    centre = bpy.data.node_groups[PROBE_GROUP_PREFIX + "Owner"].nodes[PROBE_CENTRE_NODE]
+    frame = min(took)
+    scene.frame_set(frame)
+    assert [centre.inputs[a].default_value for a in "XYZ"] == pytest.approx(records[took[frame]]["origin"], abs=1e-5)
+
+    renders = probe_renders()
+    bake(bpy, all_objects=True, frame_start=1, frame_end=7, cull=False)
+    assert probe_renders() == renders                      # all cached, the reused frames too
+    scene.platelight.probe_reuse = 0.0
+    bake(bpy, all_objects=True, frame_start=1, frame_end=7, cull=False)
+    assert probe_renders() - renders == len(took)
+    assert not any("reused" in read_record(str(folder), f) for f in range(1, 8))
+
+
 def test_only_the_maps_the_materials_read_are_baked(bpy_clean, tmp_path):
     bpy = bpy_clean
     scene = new_scene(bpy, tmp_path, world_color=(0.3, 0.3, 0.3))
