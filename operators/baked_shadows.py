@@ -295,7 +295,7 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
                           moving_height if per_frame else 0)
     if use_cache and record is not None and record.get("hash") == digest and \
             bpy.data.materials.get(names.BAKED_SHADOW_MATERIAL) is not None and \
-            os.path.isfile(os.path.join(folder, engine.RATIO_FILE)):
+            os.path.isfile(os.path.join(folder, engine.RATIO_FILE)) and engine.has_moving_frames(folder, frames):
         return {"seconds": 0.0, "folder": folder, "centre": record["centre"], "warnings": [], "reused": True}
     moved = [ob for ob in cg if ob.name in moving]
     # every CG moving, the still panorama is of nothing: looked up from above the first frame's CG
@@ -361,6 +361,7 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
                         "centres": [[float(v) for v in c] for c in centres]}
     engine.write_record(folder, centre, height, samples, digest, method, denoiser,
                         per_frame_record if moving else None)
+    engine.remove_moving_frames(folder, keep=frames)      # an earlier, longer per-frame bake's
     baked_shadow_material(ratio_path, distance_path, centre,
                           moving_maps(folder, frames, centres) if per_frame else None)
     return {"seconds": time.perf_counter() - t0, "folder": folder, "centre": centre,

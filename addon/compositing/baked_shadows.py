@@ -20,10 +20,12 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 
 import numpy as np
 
 from ..exr_io import write_exr
+from ..ibl.distance import DISTANCE_NAME, distance_filename
 from ..fileio import write_json_atomic
 
 RATIO_FILE = "shadow_ratio.exr"
@@ -115,6 +117,32 @@ def write_ratio(folder: str, texture: np.ndarray, frame: int | None = None) -> s
     path = os.path.join(folder, ratio_filename(frame))
     write_exr(path, texture)
     return path
+
+
+def moving_filenames(frame: int) -> list[str]:
+    """The files of one frame of a moving CG's per-frame bake, in MOVING_FOLDER."""
+    return [ratio_filename(frame), distance_filename(frame)]
+
+
+def has_moving_frames(folder: str, frames) -> bool:
+    """Does ``folder`` hold every file of these frames of a per-frame bake?"""
+    moving = os.path.join(folder, MOVING_FOLDER)
+    return all(os.path.isfile(os.path.join(moving, name)) for f in frames for name in moving_filenames(f))
+
+
+def remove_moving_frames(folder: str, keep=()) -> list[str]:
+    """Delete the per-frame bake's files of frames not in ``keep`` (a shorter shot, or the moving
+    CG's shadows now left to the catcher), so no old frame is ever read. Returns the files removed."""
+    moving = os.path.join(folder, MOVING_FOLDER)
+    if not os.path.isdir(moving):
+        return []
+    wanted = {name for f in keep for name in moving_filenames(f)}
+    frame_file = re.compile(r"^(?:%s|%s)_\d{4,}\.exr$" % (re.escape(os.path.splitext(RATIO_FILE)[0]),
+                                                         re.escape(DISTANCE_NAME)))
+    removed = sorted(n for n in os.listdir(moving) if frame_file.match(n) and n not in wanted)
+    for name in removed:
+        os.unlink(os.path.join(moving, name))
+    return removed
 
 
 def write_record(folder: str, centre, height: int, samples: int, digest: str = "", method: str = "",

@@ -4,6 +4,7 @@ ball, tests/blender/test_baked_shadows.py)."""
 from __future__ import annotations
 
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -133,11 +134,33 @@ def test_a_ball_animated_after_the_bake_gets_each_frames_own_shadow(bpy_clean, t
     check_frame_shadow(bpy, scene, ball, tmp_path / "out", 35)
 
     # baked again, the ball's shadows are baked at every frame and only looked up
-    assert bpy.ops.platelight.bake_shadows(height=128, samples=16, moving_shadows="PER_FRAME", moving_height=128) == {"FINISHED"}
+    per_frame = dict(height=128, samples=16, moving_shadows="PER_FRAME", moving_height=128)
+    assert bpy.ops.platelight.bake_shadows(**per_frame) == {"FINISHED"}
     assert bpy.ops.platelight.setup_composite(samples=64) == {"FINISHED"}
     assert "(baked, cycles)" in capfd.readouterr().out and not floor.is_shadow_catcher
     scene.frame_set(FRAMES[1])
     check_frame_shadow(bpy, scene, ball, tmp_path / "baked", 35)
+
+    # the per-frame files: a frame's file gone is baked again; a shorter shot leaves no old
+    # frame's files behind; a refused bake (the lone moving ball left to the catcher) keeps them
+    from platelight.addon.compositing import baked_shadows as engine
+    from platelight.operators.baked_shadows import shadows_folder
+
+    moving = pathlib.Path(shadows_folder(scene)) / engine.MOVING_FOLDER
+
+    def frames_on_disk():
+        return sorted({int(n.stem[-4:]) for n in moving.glob("*.exr")})
+
+    assert frames_on_disk() == list(range(FRAMES[0], FRAMES[1] + 1))
+    (moving / engine.ratio_filename(3)).unlink()
+    assert bpy.ops.platelight.bake_shadows(**per_frame) == {"FINISHED"}
+    assert (moving / engine.ratio_filename(3)).is_file()
+    scene.frame_end = 5
+    assert bpy.ops.platelight.bake_shadows(**per_frame) == {"FINISHED"}
+    assert frames_on_disk() == list(range(FRAMES[0], 6))
+    with pytest.raises(RuntimeError, match="need at least one CG object"):
+        bpy.ops.platelight.bake_shadows(moving_shadows="CATCHER")
+    assert frames_on_disk() == list(range(FRAMES[0], 6))
 
 
 def check_frame_shadow(bpy, scene, ball, folder, least_psnr):
