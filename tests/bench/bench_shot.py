@@ -2,8 +2,10 @@
 
 Each scene is a CG object on stand-ins for real surfaces (phantoms) under an environment, filmed
 by a camera orbiting 20 degrees over a 24-frame shot; frames 1, 12 and 24 are rendered and scored.
-In a moving scene the sphere also rolls across the floor over the shot, and every frame's work
-that the route needs (a per-frame shadow bake) is done for all 24.
+In a moving scene the CG moves over the shot (the sphere rolls across the floor, a textured
+Suzanne turns in place, a column bends on an armature), and every frame's work that the route
+needs (a per-frame probe or shadow bake) is done for all 24; the default route's samples are then
+both its CG layer's and the moving shadows' catcher layer's.
 The truth is Cycles path-traced with the CG there, the plate the same without it, each the mean
 of two halves of independent seeds: the halves' difference is the truth's own noise, so every
 score is judged against the truth's ceiling. The routes follow the user's order (plate first,
@@ -18,7 +20,7 @@ Run: `make bench-shot` (960x540; `make bench-shot-gpu` with Cycles on a GPU). En
 PLATELIGHT_BENCH_SCENES="a;b" (a subset, by name), PLATELIGHT_BENCH_REPEATS (3),
 PLATELIGHT_BENCH_TRUTH_HALF_SPP (each truth half's samples; 1024),
 PLATELIGHT_BENCH_CATCHER_SPP=4,16,64,256,1024, PLATELIGHT_BENCH_CG_SPP=1,4,16 (the default route's
-CG samples), PLATELIGHT_BENCH_ROUTES=platelight,catcher (a subset of route keys).
+samples), PLATELIGHT_BENCH_ROUTES=platelight,catcher (a subset of route keys).
 """
 from __future__ import annotations
 
@@ -57,7 +59,12 @@ class Scene:
     material: str          # a bench_composite.MATERIALS key
     box: bool = False      # a red phantom box beside the sphere
     noise: float = 0.0     # the plate's sensor noise (standard deviation at mid-grey)
-    rolls: bool = False    # the sphere rolls across the floor over the shot
+    moves: str = ""        # over the shot the CG "rolls" (the sphere across the floor), "turns"
+                           # (a textured Suzanne in place) or "bends" (a column on an armature)
+
+    @property
+    def moving(self) -> bool:
+        return bool(self.moves)
 
 
 # in the order they run: a run stopped early reports what it has
@@ -67,10 +74,12 @@ SCENES = {
     "overcast, glossy tiles, glossy": Scene("overcast", "tiles", "glossy"),
     "lamp room, grey floor, anisotropic": Scene("lamp_room", "grey", "anisotropic"),
     "city, noisy plate, diffuse": Scene("city", "photo", "diffuse", noise=0.01),
-    "rolling, hard sun, photo floor, diffuse": Scene("hard_sun", "photo", "diffuse", rolls=True),
-    "rolling, city, grey floor, mirror + box": Scene("city", "grey", "mirror", box=True, rolls=True),
+    "rolling, hard sun, photo floor, diffuse": Scene("hard_sun", "photo", "diffuse", moves="rolls"),
+    "turning Suzanne, hard sun, photo floor, textured": Scene("hard_sun", "photo", "diffuse", moves="turns"),
+    "bending column, city, grey floor, diffuse": Scene("city", "grey", "diffuse", moves="bends"),
+    "rolling, city, grey floor, mirror + box": Scene("city", "grey", "mirror", box=True, moves="rolls"),
 }
-MOVING_SCENES = [name for name, spec in SCENES.items() if spec.rolls]
+MOVING_SCENES = [name for name, spec in SCENES.items() if spec.moving]
 # the rolling sphere's path over the shot (m, along x), turning as it rolls
 ROLL_FROM, ROLL_TO = -0.6, 0.6
 
@@ -78,7 +87,7 @@ ROLL_FROM, ROLL_TO = -0.6, 0.6
 def scene_frames(spec: Scene) -> tuple:
     """The scene frames the scored frames are: a still shot is keyed at 1, 2, 3 (nothing is done
     between them); a moving one runs the whole shot, so its per-frame work is all there."""
-    return SCORED_FRAMES if spec.rolls else tuple(range(1, len(SCORED_FRAMES) + 1))
+    return SCORED_FRAMES if spec.moving else tuple(range(1, len(SCORED_FRAMES) + 1))
 
 
 def counts(variable, default):
@@ -171,37 +180,140 @@ def build(bpy, spec: Scene, frame: int = 1):
     floor.active_material = floor.data.materials[0]
     floor.data.uv_layers.new()
     phantoms = [floor] + ([scene.objects["Box"]] if spec.box else [])
-    if spec.rolls:
+    if spec.moving:
         scene.frame_start, scene.frame_end = 1, SHOT_FRAMES
-        key_rolling_shot(scene, sphere, spec.box)
+        cg = MOVING_CG[spec.moves](bpy, scene, sphere)
+        key_moving_shot(scene, cg, spec)
+        return _at(scene, frame), [cg], phantoms
     else:
         bc.key_shot_camera(scene, spec.box, SCORED_FRAMES)
+    return _at(scene, frame), [sphere], phantoms
+
+
+def _at(scene, frame):
     scene.frame_set(frame)
     bc.set_device(scene)
-    return scene, [sphere], phantoms
+    return scene
 
 
-def key_rolling_shot(scene, sphere, box):
-    """Key the orbiting camera and the sphere rolling from ROLL_FROM to ROLL_TO (turning by the
-    distance over its radius) at each scored frame of the 24-frame shot."""
-    import math
+def suzanne(bpy, scene, sphere):
+    """The sphere's place taken by Suzanne (subdivided once, smooth), resting on the floor, her
+    base colour a checker on her own coordinates (the texture turns with her)."""
+    import bmesh
 
+    mesh = bpy.data.meshes.new("Suzanne")
+    bm = bmesh.new()
+    bmesh.ops.create_monkey(bm)
+    bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=1, use_grid_fill=True, smooth=1.0)
+    bmesh.ops.scale(bm, vec=(0.5, 0.5, 0.5), verts=bm.verts)
+    lowest = min(v.co.z for v in bm.verts)
+    bmesh.ops.translate(bm, vec=(0.0, 0.0, -lowest), verts=bm.verts)
+    bm.to_mesh(mesh)
+    bm.free()
+    for poly in mesh.polygons:
+        poly.use_smooth = True
+    mat = sphere.active_material
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Color1"].default_value = (0.75, 0.35, 0.12, 1)
+    checker.inputs["Color2"].default_value = (0.12, 0.3, 0.6, 1)
+    checker.inputs["Scale"].default_value = 6.0
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], checker.inputs["Vector"])
+    nt.links.new(checker.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
+    mesh.materials.append(mat)
+    ob = bpy.data.objects.new("Suzanne", mesh)
+    scene.collection.objects.link(ob)
+    bpy.data.objects.remove(sphere)
+    return ob
+
+
+def column(bpy, scene, sphere):
+    """The sphere's place taken by a column 1.3 m tall and 0.45 m wide on the floor, skinned to a
+    two-bone armature whose upper bone bends it over the shot."""
+    import bmesh
+
+    mesh = bpy.data.meshes.new("Column")
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=1.0)
+    bmesh.ops.scale(bm, vec=(0.45, 0.45, 1.3), verts=bm.verts)
+    bmesh.ops.translate(bm, vec=(0.0, 0.0, 0.65), verts=bm.verts)
+    bmesh.ops.subdivide_edges(bm, edges=[e for e in bm.edges if abs(e.verts[0].co.z - e.verts[1].co.z) > 1e-6],
+                              cuts=15, use_grid_fill=True)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.materials.append(sphere.active_material)
+    ob = bpy.data.objects.new("Column", mesh)
+    scene.collection.objects.link(ob)
+    bpy.data.objects.remove(sphere)
+    rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+    scene.collection.objects.link(rig)
+    bpy.context.view_layer.objects.active = rig
+    bpy.ops.object.mode_set(mode="EDIT")
+    lower = rig.data.edit_bones.new("Lower")
+    lower.head, lower.tail = (0, 0, 0), (0, 0, 0.65)
+    upper = rig.data.edit_bones.new("Upper")
+    upper.head, upper.tail, upper.parent, upper.use_connect = (0, 0, 0.65), (0, 0, 1.3), lower, True
+    bpy.ops.object.mode_set(mode="OBJECT")
+    heights = np.array([v.co.z for v in mesh.vertices])
+    weight_upper = np.clip((heights - 0.45) / 0.4, 0.0, 1.0)    # a smooth knee 0.45-0.85 m up
+    for name, weights in (("Lower", 1.0 - weight_upper), ("Upper", weight_upper)):
+        group = ob.vertex_groups.new(name=name)
+        for index, weight in enumerate(weights):
+            if weight > 0:
+                group.add([index], float(weight), "REPLACE")
+    ob.modifiers.new("Armature", "ARMATURE").object = rig
+    ob.location = rig.location = tuple(bc.SPHERE[0] * (1, 1, 0))
+    return ob
+
+
+# how each moving CG is keyed at a scored frame, from t = 0 (the shot's first frame) to 1 (its last)
+def _roll(cg, t):
+    centre, radius = bc.SPHERE
+    x = ROLL_FROM + (ROLL_TO - ROLL_FROM) * t
+    cg.location = (centre[0] + x, centre[1], centre[2])
+    cg.rotation_euler = (0.0, x / radius, 0.0)          # turning by the distance over its radius
+    return [(cg, "location"), (cg, "rotation_euler")]
+
+
+def _turn(cg, t):
+    cg.rotation_euler = (0.0, 0.0, np.radians(TURN_DEGREES) * t)
+    return [(cg, "rotation_euler")]
+
+
+def _bend(cg, t):
+    bone = cg.modifiers["Armature"].object.pose.bones["Upper"]
+    bone.rotation_mode = "XYZ"
+    bone.rotation_euler = (np.radians(BEND_DEGREES) * t, 0.0, 0.0)
+    return [(bone, "rotation_euler")]
+
+
+MOVING_CG = {"rolls": lambda bpy, scene, sphere: sphere, "turns": suzanne, "bends": column}
+TURN_DEGREES = 180.0       # Suzanne turns half round over the shot
+BEND_DEGREES = 60.0        # the column's upper half bends towards the camera
+KEYS = {"rolls": _roll, "turns": _turn, "bends": _bend}
+
+
+def cg_words(spec) -> str:
+    """The scene's CG and its motion, as the report names them."""
+    return {"": f"{spec.material} sphere", "rolls": f"{spec.material} sphere rolling {ROLL_TO - ROLL_FROM:g} m",
+            "turns": f"{spec.material} Suzanne with a checker texture, turning {TURN_DEGREES:g} degrees in place",
+            "bends": f"{spec.material} column bent {BEND_DEGREES:g} degrees by an armature"}[spec.moves]
+
+
+def key_moving_shot(scene, cg, spec):
+    """Key the orbiting camera and the CG's motion (KEYS) at each scored frame of the shot."""
     from mathutils import Vector
 
     cam = scene.camera
-    centre, radius = bc.SPHERE
     for frame in SCORED_FRAMES:
-        location, target, lens = bc.shot_camera(frame, box)
+        location, target, lens = bc.shot_camera(frame, spec.box)
         cam.location = location
         cam.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
         cam.data.lens = lens
         cam.keyframe_insert("location", frame=frame)
         cam.keyframe_insert("rotation_euler", frame=frame)
-        x = ROLL_FROM + (ROLL_TO - ROLL_FROM) * (frame - 1) / (SHOT_FRAMES - 1)
-        sphere.location = (centre[0] + x, centre[1], centre[2])
-        sphere.rotation_euler = (0.0, x / radius, 0.0)
-        sphere.keyframe_insert("location", frame=frame)
-        sphere.keyframe_insert("rotation_euler", frame=frame)
+        for owner, path in KEYS[spec.moves](cg, (frame - 1) / (SHOT_FRAMES - 1)):
+            owner.keyframe_insert(path, frame=frame)
 
 
 # ------------------------------------------------------------------ truths, plates, masks
@@ -294,14 +406,16 @@ def run_platelight(bpy, spec, data, samples, out_dir, paper=False, shadow_bake=N
     assert bpy.ops.platelight.setup_plate(filepath=str(data["plate_path"])) == {"FINISHED"}
     # a rolling sphere's probe follows it: baked at every frame, as the bake's warning asks
     bake_s = bc.sbrdf_sphere(bpy, scene, cg[0], out_dir / "frame", paper=paper,
-                             route="sbrdf_paper" if paper else "sbrdf", frame_range=spec.rolls)
+                             route="sbrdf_paper" if paper else "sbrdf", frame_range=spec.moving)
     t1 = time.perf_counter()
     try:
         assert bpy.ops.platelight.bake_shadows(**(shadow_bake or {})) == {"FINISHED"}
     except RuntimeError as refusal:      # every CG moves: nothing to bake, as the user is told
         assert "need at least one CG object" in str(refusal), refusal
     bake_s += time.perf_counter() - t1
-    assert bpy.ops.platelight.setup_composite(cg_samples=samples, **(composite or {})) == {"FINISHED"}
+    # a moving CG's shadows are path-traced every frame (the catcher layer): at the route's samples too
+    frame_samples = {"samples": samples} if spec.moving else {}
+    assert bpy.ops.platelight.setup_composite(cg_samples=samples, **frame_samples, **(composite or {})) == {"FINISHED"}
     setup_s = time.perf_counter() - t0 - bake_s
     images, seconds = [], []
     for index, frame in enumerate(scene_frames(spec), start=1):
@@ -449,8 +563,7 @@ def write_report(out_dir, stem, rows, header):
              f"{rows[-1]['load']:.1f} at the last row. Every row below was timed in this run, "
              f"{REPEATS} times each, interleaved. Truth: 2 × {TRUTH_HALF_SPP} spp, no denoiser, Filter Glossy 0. "
              "Produced by `tests/bench/bench_shot.py`; nothing here is written by hand.", "",
-             "Scenes: " + "; ".join(f"*{n}*: {s.hdri} environment, {s.floor} floor, {s.material} sphere"
-                                    + (f" rolling {ROLL_TO - ROLL_FROM:g} m" if s.rolls else "")
+             "Scenes: " + "; ".join(f"*{n}*: {s.hdri} environment, {s.floor} floor, {cg_words(s)}"
                                     + (", a red phantom box" if s.box else "")
                                     + (f", plate noise {s.noise:g}" if s.noise else "")
                                     for n, s in SCENES.items() if any(r["scene"] == n for r in rows)) + ".", "",
