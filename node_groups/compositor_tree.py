@@ -6,6 +6,7 @@ import bpy
 
 from .. import compat
 from ..addon import names
+from ..addon.compositing.baked_shadows import CATCHER_ALBEDO
 from .composite import build_differential_group
 from .redistortion import wire_redistortion
 
@@ -73,13 +74,27 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
                 result = both.outputs[0]
         return result
 
-    def denoised_unless(socket, keep_factor, location):
+    def denoised_unless(socket, keep_factor, location, normal=None):
         """OIDN on ``socket``, except where ``keep_factor`` is 1: there the raw pixel is kept,
-        so denoising never touches pixels the CG does not reach (the plate stays exact)."""
+        so denoising never touches pixels the CG does not reach (the plate stays exact).
+        ``normal``: a Denoising Normal pass to guide it, with the constant albedo Cycles' own
+        denoiser gives a Shadow Catcher pass (CATCHER_ALBEDO); the guides are
+        noise-free first hits, so not prefiltered."""
         x, y = location
         node = nodes.new("CompositorNodeDenoise")
         node.location = (x, y)
         links.new(socket, node.inputs["Image"])
+        if normal is not None:
+            # an image of the albedo, not a value: the node ignores a single-value albedo (and
+            # then the normal too, as OIDN takes no normal without an albedo)
+            albedo = compat.compositor_math(nodes, "MULTIPLY_ADD")
+            albedo.location = (x - 200, y - 150)
+            links.new(normal, albedo.inputs[0])
+            albedo.inputs[1].default_value = 0.0
+            albedo.inputs[2].default_value = CATCHER_ALBEDO
+            links.new(albedo.outputs[0], node.inputs["Albedo"])
+            links.new(normal, node.inputs["Normal"])
+            compat.set_option(node, "Prefilter", "None")
         mix = compat.compositor_mix(nodes)
         mix.node.location = (x + 200, y)
         links.new(keep_factor, mix.factor)
@@ -88,10 +103,13 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         return mix.result
 
     def caught(source, y):
-        """``source``'s Shadow Catcher pass, denoised (where it is not 1) when asked."""
+        """``source``'s Shadow Catcher pass, denoised (where it is not 1) when asked, guided by the
+        layer's Denoising Normal as Cycles' denoiser is."""
         catcher = source.outputs["Shadow Catcher"]
         if denoise_shadows:
-            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, y)), (-300, y + 50))
+            scene.view_layers[source.layer].cycles.denoising_store_passes = True
+            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, y)), (-300, y + 50),
+                                      normal=source.outputs["Denoising Normal"])
         return catcher
 
     cg_image = cg.outputs["Image"]

@@ -115,7 +115,8 @@ class PlateLightSceneSettings(bpy.types.PropertyGroup):
         name="Probe Reuse",
         description="Over a frame range, a moving object's probe is rendered again only once the "
         "object has moved or turned by more than this fraction of its size since the last one "
-        "(or anything it sees changed); the frames between reuse that probe from its own centre. "
+        "(or anything it sees changed); the frames between reuse that probe from its own centre "
+        "(faster for large probes, but the object's own shadow in its probe lags behind). "
         "0: a probe every frame",
         default=PROBE_REUSE_DEFAULT, min=0.0, soft_max=1.0,
     )

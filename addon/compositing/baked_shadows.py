@@ -29,6 +29,10 @@ from ..ibl.distance import DISTANCE_NAME, distance_filename
 from ..fileio import write_json_atomic
 
 RATIO_FILE = "shadow_ratio.exr"
+# Cycles denoises a Shadow Catcher pass with this constant albedo and the normal (its
+# denoiser_oidn: OIDN takes a normal only with an albedo); PlateLight's denoising of catcher
+# passes does the same
+CATCHER_ALBEDO = 0.5
 RECORD_FILE = "shadow_ratio.json"
 # Inside the shadows folder: a moving CG's per-frame ratio and distance panoramas
 MOVING_FOLDER = "moving"

@@ -16,14 +16,12 @@ import numpy as np
 
 from ... import compat
 from ...addon import names
+from ...addon.compositing.baked_shadows import CATCHER_ALBEDO
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
 
 # Cycles' enum identifiers -> the Denoise node's item names.
 _QUALITY = {"HIGH": "High", "BALANCED": "Balanced", "FAST": "Fast"}
-# Cycles denoises the Shadow Catcher pass with this constant albedo and the normal (its
-# denoiser_oidn: OIDN takes a normal only with an albedo).
-CATCHER_ALBEDO = 0.5
 
 
 def available() -> bool:

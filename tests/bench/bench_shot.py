@@ -98,8 +98,8 @@ def counts(variable, default):
 ROUTES = {
     "platelight": ("platelight (default)", "platelight", counts("PLATELIGHT_BENCH_CG_SPP", "1,4,16")),
     "paper": ("platelight (paper's model)", "paper", (16,)),
-    # a moving CG's probe rendered at every frame, not reused while it moves little
-    "every_probe": ("platelight, a probe every frame (Probe Reuse 0)", "platelight", (4,)),
+    # a moving CG's probe reused while it moves less than a quarter of its bounding radius
+    "probe_reuse": ("platelight, Probe Reuse 0.25", "platelight", (4,)),
     # a moving CG's shadows baked at every frame, at 256 rows and at the still bake's 512
     "moving_256": ("platelight, moving shadows baked per frame at 256 rows", "platelight", (4,)),
     "moving_512": ("platelight, moving shadows at 512 rows", "platelight", (4,)),
@@ -464,8 +464,8 @@ def run_route(bpy, key, spec, data, samples, out_dir):
         return run_platelight(bpy, spec, data, samples, out_dir)
     if key == "paper":
         return run_platelight(bpy, spec, data, samples, out_dir, paper=True)
-    if key == "every_probe":
-        return run_platelight(bpy, spec, data, samples, out_dir, probe_reuse=0.0)
+    if key == "probe_reuse":
+        return run_platelight(bpy, spec, data, samples, out_dir, probe_reuse=0.25)
     if key in ("moving_256", "moving_512"):
         return run_platelight(bpy, spec, data, samples, out_dir,
                               shadow_bake={"moving_shadows": "PER_FRAME", "moving_height": int(key[7:])})

@@ -147,6 +147,8 @@ def test_a_slowly_moving_object_reuses_its_probe_until_it_has_moved_a_quarter_of
 
     bpy = bpy_clean
     scene = new_scene(bpy, tmp_path, world_color=(0.2, 0.3, 0.4))
+    assert scene.platelight.probe_reuse == 0.0            # off unless asked
+    scene.platelight.probe_reuse = 0.25
     add_plane(bpy, "Floor", (0, 0, -0.5), color=(0.8, 0.1, 0.1), phantom=True)
     owner = add_sphere(bpy, "Owner", (0, 0, 0))
     for frame, x in ((1, 0.0), (7, 0.9)):

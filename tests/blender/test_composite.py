@@ -232,6 +232,12 @@ def test_shadow_passes_are_denoised_by_default(bpy_clean, tmp_path, method):
               "DIFFERENTIAL": {(names.LAYER_LOCAL, "Image"), (names.LAYER_WITHOUT, "Image")}}[method]
     cg_image = (names.LAYER_CG, "Image")
     assert _denoised_sources(compat().compositor_tree(scene)) == passes | {cg_image}
+    if method == "CATCHER":          # guided as Cycles' own denoiser guides a catcher pass
+        denoise = next(n for n in compat().compositor_tree(scene).nodes if n.bl_idname == "CompositorNodeDenoise"
+                       and n.inputs["Image"].links[0].from_socket.name == "Shadow Catcher")
+        assert denoise.inputs["Normal"].links[0].from_socket.name == "Denoising Normal"
+        assert denoise.inputs["Albedo"].is_linked
+        assert scene.view_layers[names.LAYER_CG].cycles.denoising_store_passes
     sphere = scene.objects["Sphere"]
     sm.apply_sbrdf_material(sphere)                # glossiness 0.5: blurred look-ups only
     assert bpy.ops.platelight.setup_composite(method=method) == {"FINISHED"}
