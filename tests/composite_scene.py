@@ -27,6 +27,22 @@ def random_plate(path, seed=0):
     return plate
 
 
+def add_armature(bpy, scene, bones):
+    """An armature object "Rig" in ``scene`` with ``bones``: (name, head, tail, parent name or None),
+    each child connected to its parent."""
+    rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+    scene.collection.objects.link(rig)
+    bpy.context.view_layer.objects.active = rig
+    bpy.ops.object.mode_set(mode="EDIT")
+    for name, head, tail, parent in bones:
+        bone = rig.data.edit_bones.new(name)
+        bone.head, bone.tail = head, tail
+        if parent is not None:
+            bone.parent, bone.use_connect = rig.data.edit_bones[parent], True
+    bpy.ops.object.mode_set(mode="OBJECT")
+    return rig
+
+
 def add_camera(bpy, scene):
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)

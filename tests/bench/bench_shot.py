@@ -245,15 +245,10 @@ def column(bpy, scene, sphere):
     ob = bpy.data.objects.new("Column", mesh)
     scene.collection.objects.link(ob)
     bpy.data.objects.remove(sphere)
-    rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
-    scene.collection.objects.link(rig)
-    bpy.context.view_layer.objects.active = rig
-    bpy.ops.object.mode_set(mode="EDIT")
-    lower = rig.data.edit_bones.new("Lower")
-    lower.head, lower.tail = (0, 0, 0), (0, 0, 0.65)
-    upper = rig.data.edit_bones.new("Upper")
-    upper.head, upper.tail, upper.parent, upper.use_connect = (0, 0, 0.65), (0, 0, 1.3), lower, True
-    bpy.ops.object.mode_set(mode="OBJECT")
+    import composite_scene
+
+    rig = composite_scene.add_armature(bpy, scene, [("Lower", (0, 0, 0), (0, 0, 0.65), None),
+                                                    ("Upper", (0, 0, 0.65), (0, 0, 1.3), "Lower")])
     heights = np.array([v.co.z for v in mesh.vertices])
     weight_upper = np.clip((heights - 0.45) / 0.4, 0.0, 1.0)    # a smooth knee 0.45-0.85 m up
     for name, weights in (("Lower", 1.0 - weight_upper), ("Upper", weight_upper)):

@@ -59,13 +59,7 @@ def test_every_kind_of_motion_is_found_and_still_objects_are_not(bpy_clean):
     follower.constraints.new("COPY_LOCATION").target = leader
 
     # an armature whose bone turns deforms its mesh; the mesh object itself stays put
-    armature = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
-    scene.collection.objects.link(armature)
-    bpy.context.view_layer.objects.active = armature
-    bpy.ops.object.mode_set(mode="EDIT")
-    bone = armature.data.edit_bones.new("Bone")
-    bone.head, bone.tail = (0, 0, 0), (0, 0, 1)
-    bpy.ops.object.mode_set(mode="OBJECT")
+    armature = cs.add_armature(bpy, scene, [("Bone", (0, 0, 0), (0, 0, 1), None)])
     skinned = box(bpy, scene, "Skinned", (0, -3, 0))
     group = skinned.vertex_groups.new(name="Bone")
     group.add(range(8), 1.0, "REPLACE")
