@@ -179,14 +179,19 @@ def strength_against_film_exposure(strength_socket, scene):
     driver.expression = "1 / max(exposure, 1e-6)"     # a simple expression: no Python needed
 
 
-def action_fcurves(idblock) -> list:
-    """The F-curves of ``idblock``'s action (its slot's channel bag; 4.4 on keep actions in slots)."""
+def _channelbag(idblock):
+    """``idblock``'s action's channel bag for its slot (4.4 on keep actions in slots), or None."""
     from bpy_extras import anim_utils
 
     animation = idblock.animation_data
     if animation is None or animation.action is None:
-        return []
-    channelbag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+        return None
+    return anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+
+
+def action_fcurves(idblock) -> list:
+    """The F-curves of ``idblock``'s action."""
+    channelbag = _channelbag(idblock)
     return list(channelbag.fcurves) if channelbag is not None else []
 
 
@@ -207,11 +212,8 @@ def hold_per_frame(socket, values: dict) -> None:
 def drop_keys(tree, node_names) -> None:
     """Remove the keys on the named nodes' sockets (a rebind's values replace them)."""
     prefixes = tuple(f'nodes["{name}"].' for name in node_names)
-    animation = tree.animation_data
-    if animation is None or animation.action is None:
+    channelbag = _channelbag(tree)
+    if channelbag is None:
         return
-    from bpy_extras import anim_utils
-
-    channelbag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
-    for curve in [c for c in action_fcurves(tree) if c.data_path.startswith(prefixes)]:
+    for curve in [c for c in channelbag.fcurves if c.data_path.startswith(prefixes)]:
         channelbag.fcurves.remove(curve)

@@ -1,9 +1,8 @@
 """A moving object's probe reused for the frames in which it has moved little since its last
 render (Probe Reuse, off by default): over a frame-range bake a probe is rendered again only once
 the object has travelled or turned by more than a fraction of its size (or anything else it sees
-changed). The reused frame
-keeps the rendered frame's centre in its record, so the parallax look-ups still start from where
-the panorama was taken; what goes stale is only how the object itself shows in its own probe (its
+changed). The reused frame keeps the rendered frame's centre in its record, so the parallax
+look-ups still start from where the panorama was taken; what goes stale is only how the object itself shows in its own probe (its
 shadow on the floor) and the irradiance grid's box, both by at most that fraction."""
 from __future__ import annotations
 
