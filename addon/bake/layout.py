@@ -60,9 +60,10 @@ def read_record(folder: str, frame: int | None) -> dict:
         return {}
 
 
-def is_cached(folder: str, frame: int | None, digest: str, maps) -> bool:
-    """True when the folder holds maps of this frame baked from inputs with this hash."""
-    if read_record(folder, frame).get("hash") != digest:
+def is_cached(folder: str, frame: int | None, digest: str, maps, record: dict | None = None) -> bool:
+    """True when the folder holds maps of this frame baked from inputs with this hash (``record``:
+    the frame's record, where the caller has read it already)."""
+    if (read_record(folder, frame) if record is None else record).get("hash") != digest:
         return False
     return all(os.path.isfile(os.path.join(folder, map_filename(n, frame))) for n in maps)
 

@@ -325,8 +325,9 @@ class ProbeBake:
             height or self.scene.platelight.probe_height))
         digest = self.probe_hash(ob, origin, maps, owner, wants_grid, wants_behind)
         inputs = (maps, owner, wants_grid, wants_behind)
-        reused_from = layout.read_record(folder, key_frame).get(REUSE_KEY) if self.use_cache else None
-        if self.use_cache and layout.is_cached(folder, key_frame, digest, maps) and self._reuse_holds(reused_from):
+        record = layout.read_record(folder, key_frame) if self.use_cache else {}
+        reused_from = record.get(REUSE_KEY)
+        if self.use_cache and layout.is_cached(folder, key_frame, digest, maps, record) and self._reuse_holds(reused_from):
             self.reused.append((ob.name, frame))
             status = "baked (unchanged)"
             if not reused_from:
