@@ -67,16 +67,24 @@ def _same_shape(a, b) -> bool:
     return bool(np.abs(a - b).max() <= SHAPE_TOLERANCE * size)
 
 
-def motions(scene, objects, frames=None) -> dict[str, Motion]:
+KINDS = ("moves", "deforms")
+
+
+def motions(scene, objects, frames=None, kinds=KINDS) -> dict[str, Motion]:
     """{name: Motion} of the ``objects`` that move or deform over ``frames`` (default: frames
-    spread over the scene's range); still objects are absent. The scene's frame is restored."""
+    spread over the scene's range); still objects are absent. The scene's frame is restored.
+    ``kinds=("deforms",)`` looks at shapes only: an object that moves and deforms (a walking
+    character) is then found as deforming, where by default its first move is reported."""
     objects = list(objects)
     if not objects:
         return {}
     if frames is None:
         frames = sample_frames(scene.frame_start, scene.frame_end, SAMPLE_FRAMES)
     frame0, subframe0 = scene.frame_current, scene.frame_subframe
-    shaped = [ob for ob in objects if can_change_shape(ob)]
+    placed = objects if "moves" in kinds else []
+    shaped = [ob for ob in objects if can_change_shape(ob)] if "deforms" in kinds else []
+    if not placed and not shaped:       # nothing that could change: no frame to walk
+        return {}
     first_matrix, first_shape, found = {}, {}, {}
     try:
         for frame in frames:
@@ -85,12 +93,13 @@ def motions(scene, objects, frames=None) -> dict[str, Motion]:
             for ob in objects:
                 if ob.name in found:
                     continue
-                matrix = np.array(ob.matrix_world)
-                if ob.name not in first_matrix:
-                    first_matrix[ob.name] = matrix
-                elif not np.allclose(matrix, first_matrix[ob.name], atol=MATRIX_TOLERANCE):
-                    found[ob.name] = Motion(ob.name, "moves", int(frame))
-                    continue
+                if ob in placed:
+                    matrix = np.array(ob.matrix_world)
+                    if ob.name not in first_matrix:
+                        first_matrix[ob.name] = matrix
+                    elif not np.allclose(matrix, first_matrix[ob.name], atol=MATRIX_TOLERANCE):
+                        found[ob.name] = Motion(ob.name, "moves", int(frame))
+                        continue
                 if ob in shaped:
                     depsgraph = depsgraph or _depsgraph(scene)
                     vertices = _vertices(ob, depsgraph)

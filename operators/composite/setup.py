@@ -28,19 +28,26 @@ def smooth_without_denoiser(ob) -> bool:
     return shaded_by_sbrdf(ob) and not wants_sharp_probe(ob)
 
 
+# What Cycles' camera sees of an SBRDF material: its path-traced twin or the paper's SBRDF
+CAMERA_SHADINGS = (("PATH_TRACED", "Path-Traced", "The Principled material the SBRDF was converted from "
+                    "(its twin), path-traced and denoised"),
+                   ("SBRDF", "SBRDF", "The paper's probe-shaded SBRDF, noise-free at one sample"))
 # Path-traced, a metal converges sooner (docs/decisions.md, "Metals path-traced, the SBRDF for the rest")
-METAL_SHADINGS = (("PATH_TRACED", "Path-Traced", "The Principled material the SBRDF was converted from "
-                   "(its twin), path-traced and denoised: the more accurate at equal time"),
-                  ("SBRDF", "SBRDF", "The paper's probe-shaded SBRDF, noise-free at one sample"))
 DEFAULT_METAL_SHADING = "PATH_TRACED"
+# The SBRDF shades from one probe and does not shadow itself: a column bent by its armature kept
+# the face under the bend lit (docs/decisions.md, "A deforming CG path-traced")
+DEFAULT_DEFORMING_SHADING = "PATH_TRACED"
 
 
-def set_camera_shading(objects, engine, metals):
+def set_camera_shading(objects, engine, metals, deforming=DEFAULT_DEFORMING_SHADING, deformed=()):
     """Give the camera each SBRDF material's SBRDF, or its path-traced twin where ``metals`` asks
-    for that of a metal in Cycles."""
+    for that of a metal in Cycles, or ``deforming`` for that of an object in ``deformed`` (names)."""
+    twinned = {slot.material for ob in objects if ob.name in deformed for slot in ob.material_slots} \
+        if deforming == "PATH_TRACED" else set()
     for material in {slot.material for ob in objects for slot in ob.material_slots}:
         if sbrdf_node(material) is not None and ray_twin.has_ray_split(material):
-            twin = engine == "CYCLES" and metals == "PATH_TRACED" and is_metal(material)
+            twin = engine == "CYCLES" and ((metals == "PATH_TRACED" and is_metal(material))
+                                           or material in twinned)
             ray_twin.set_camera_sees_sbrdf(material, not twin)
 
 
@@ -57,7 +64,7 @@ FILMED_CLAMP_DIRECT = 100.0
 
 def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_form=True,
                     shadow_clamp=4.0, denoise_shadows=True, baked_samples=BAKED_SHADOW_SAMPLES, samples=0,
-                    metals=DEFAULT_METAL_SHADING):
+                    metals=DEFAULT_METAL_SHADING, deforming=DEFAULT_DEFORMING_SHADING):
     """Composite ``scene``'s CG objects onto its plate by ``method`` (AUTO or a route of routes.py)
     in ``engine``; the options are platelight.setup_composite's. Returns the report's lines,
     (level, sentence) with level INFO or WARNING; raises PlateLightError before changing anything."""
@@ -167,7 +174,10 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
             scene.view_layers[name].use = False
     if engine == compat.EEVEE and route.local_scene:
         configure_eevee(scene)
-    set_camera_shading(cg, engine, metals)
+    # a material shared with a deforming object is path-traced on every object that wears it
+    deformed = frozenset(motion.motions(scene, cg, kinds=("deforms",))) \
+        if engine == "CYCLES" and deforming == "PATH_TRACED" else frozenset()
+    set_camera_shading(cg, engine, metals, deforming, deformed)
     noisy = [ob for ob in cg if not smooth_without_denoiser(ob)]   # path-traced, or a sharp SBRDF
     # EEVEE's samples anti-alias a noise-free image: its SBRDF needs no more than the edges do
     converging = bool(noisy) and engine == "CYCLES"
@@ -192,6 +202,9 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
         layer = f", the CG at {layer_samples} samples" if route.cg_samples else ""
         if moving_cg:
             layer += f"; the shadows of {len(moving_cg)} moving CG object(s) rendered every frame"
+        if deformed:
+            layer += ("; path-traced as they deform (the SBRDF does not shadow itself): "
+                      + ", ".join(sorted(repr(name) for name in deformed)))
         reports.append(("INFO", f"Composite set up ({route.name.lower()}, {engine.lower()}): "
                         f"{len(cg)} CG object(s) ({len(noisy)} path-traced or with a sharp "
                         f"reflection{layer}), {len(phantoms)} phantom(s), plate '{plate_image.name}'{clamped}."))

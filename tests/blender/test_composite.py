@@ -317,3 +317,44 @@ def test_metals_are_path_traced_in_cycles_unless_asked_for_the_sbrdf(bpy_clean, 
     assert not sm.is_metal(dielectric)
     assert bpy.ops.platelight.setup_composite(method="CATCHER", samples=16) == {"FINISHED"}
     assert ray_twin.camera_sees_sbrdf(dielectric) and sm.shaded_by_sbrdf(sphere)
+
+
+def test_a_deforming_sbrdf_object_is_path_traced_so_that_it_shadows_itself(bpy_clean, tmp_path):
+    """The SBRDF shades from one probe and does not shadow itself: a deforming object's camera gets
+    its path-traced twin in Cycles by default (docs/decisions.md, "A deforming CG path-traced"),
+    a still or merely moving one keeps the SBRDF; ``deforming='SBRDF'`` and EEVEE keep the
+    paper's shading."""
+    bpy = bpy_clean
+    sm = importlib.import_module(f"{support.EXT_MODULE}.node_groups.sbrdf_material")
+    ray_twin = importlib.import_module(f"{support.EXT_MODULE}.node_groups.ray_twin")
+    scene, _plate = build_scene(bpy, tmp_path, "CATCHER", samples=16)
+    scene.frame_start, scene.frame_end = 1, 8
+    bulging = scene.objects["Sphere"]
+    rolling = add_sphere(bpy, scene, location=(SPHERE_C[0] + 1.0, SPHERE_C[1], SPHERE_C[2]), name="Rolling")
+    for ob, name in ((bulging, "Bulging Plastic"), (rolling, "Rolling Plastic")):
+        ob.data.materials.append(principled_material(name, 0.4, (0.6, 0.6, 0.6)))
+    bulging.shape_key_add(name="Basis")
+    key = bulging.shape_key_add(name="Bulge")
+    key.data[0].co = (0.0, 0.0, 2.0 * SPHERE_R)
+    rolling.location.x -= 0.5
+    rolling.keyframe_insert("location", frame=1)
+    rolling.location.x += 0.5
+    rolling.keyframe_insert("location", frame=8)
+    for frame, value in ((1, 0.0), (8, 1.0)):
+        key.value = value
+        key.keyframe_insert("value", frame=frame)
+    deformed, moved = sm.apply_sbrdf_material(bulging), sm.apply_sbrdf_material(rolling)
+    assert not sm.is_metal(deformed) and not sm.is_metal(moved)
+
+    assert bpy.ops.platelight.setup_composite(method="CATCHER", samples=16) == {"FINISHED"}
+    assert not ray_twin.camera_sees_sbrdf(deformed) and ray_twin.camera_sees_sbrdf(moved)
+    assert not sm.shaded_by_sbrdf(bulging) and sm.shaded_by_sbrdf(rolling)   # so it is denoised
+    assert bpy.ops.platelight.setup_composite(method="CATCHER", samples=16, deforming="SBRDF") == {"FINISHED"}
+    assert ray_twin.camera_sees_sbrdf(deformed)
+    composite = importlib.import_module(f"{support.EXT_MODULE}.operators.composite")
+    lines = composite.setup_composite(scene, method="CATCHER")      # the function the operator calls
+    assert not ray_twin.camera_sees_sbrdf(deformed)
+    assert any("path-traced as they deform (the SBRDF does not shadow itself): 'Sphere'" in sentence
+               for _level, sentence in lines)
+    assert bpy.ops.platelight.setup_composite(method="CATCHER", engine="EEVEE") == {"FINISHED"}
+    assert ray_twin.camera_sees_sbrdf(deformed) == (scene.render.engine != "CYCLES")

@@ -83,12 +83,23 @@ def test_every_kind_of_motion_is_found_and_still_objects_are_not(bpy_clean):
         displaced.modifiers["Displace"].strength = value
         displaced.modifiers["Displace"].keyframe_insert("strength", frame=frame)
 
+    walking = box(bpy, scene, "Walking", (0, -12, 0))        # moves and deforms
+    keyed(walking, "location", [(0, -12, 0), (1, -12, 0)])
+    walking.shape_key_add(name="Basis")
+    stride = walking.shape_key_add(name="Stride")
+    stride.data[7].co = (2, 2, 2)
+    for frame, value in zip(FRAMES, (0.0, 1.0)):
+        stride.value = value
+        stride.keyframe_insert("value", frame=frame)
+
     scene.frame_set(3)
     objects = [ob for ob in scene.objects if ob.type == "MESH"]
     found = motion.motions(scene, objects)
     assert {name: m.kind for name, m in found.items()} == {
-        "Keyed": "moves", "Turned": "moves", "Child": "moves", "Constrained": "moves",
+        "Keyed": "moves", "Turned": "moves", "Child": "moves", "Constrained": "moves", "Walking": "moves",
         "Skinned": "deforms", "Shape Keys": "deforms", "Displaced": "deforms"}
+    # asked for shapes only, what moves and deforms deforms, what only moves is not there
+    assert set(motion.motions(scene, objects, kinds=("deforms",))) == {"Skinned", "Shape Keys", "Displaced", "Walking"}
     assert scene.frame_current == 3                     # the user's frame is kept
     assert "'Skinned' deforms during the shot" in found["Skinned"].sentence()
     # a shot that ends before the keys change sees nothing move
