@@ -101,7 +101,7 @@ ROUTES = {
     # a moving CG's probe reused while it moves less than a quarter of its bounding radius
     "probe_reuse": ("platelight, Probe Reuse 0.25", "platelight", (4,)),
     # a deforming CG shaded by its SBRDF, as the paper does, where the default path-traces it
-    "sbrdf_deforming": ("platelight, a deforming CG's SBRDF", "platelight", counts("PLATELIGHT_BENCH_CG_SPP", "1,4,16")),
+    "sbrdf_deforming": ("platelight, a deforming CG's SBRDF", "platelight", (4,)),
     # a moving CG's shadows baked at every frame, at 256 rows and at the still bake's 512
     "moving_256": ("platelight, moving shadows baked per frame at 256 rows", "platelight", (4,)),
     "moving_512": ("platelight, moving shadows at 512 rows", "platelight", (4,)),
