@@ -67,3 +67,18 @@ def test_the_catcher_pass_becomes_the_ratio_only_where_a_catcher_was_seen():
     assert (ratio[:2] == 1).all() and (ratio[6:] == 1).all()
     assert np.allclose(ratio[2:6, :, 0], [0.5, 1.0, engine.RATIO_CLAMP, 0.75])
     assert (ratio[2:6, 1] == 1).all()
+
+
+def test_removing_old_frames_keeps_the_kept_frames_and_every_other_file(tmp_path):
+    """A per-frame bake drops the files of frames no longer in the shot, and nothing else: the
+    kept frames, the still bake's files and a user's own files in the folder stay."""
+    moving = tmp_path / engine.MOVING_FOLDER
+    moving.mkdir()
+    others = ["shadow_ratio.exr", "shadow_ratio_notes.exr", "distance_0003_backup.exr", "readme.txt"]
+    for name in [n for f in (1, 2, 3, 12) for n in engine.moving_filenames(f)] + others:
+        (moving / name).write_bytes(b"")
+    removed = engine.remove_moving_frames(str(tmp_path), keep=(1, 2))
+    assert removed == sorted(n for f in (3, 12) for n in engine.moving_filenames(f))
+    assert engine.has_moving_frames(str(tmp_path), (1, 2)) and not engine.has_moving_frames(str(tmp_path), (3,))
+    assert all((moving / name).exists() for name in others)
+    assert engine.remove_moving_frames(str(tmp_path / "nothing here")) == []

@@ -25,7 +25,7 @@ import re
 import numpy as np
 
 from ..exr_io import write_exr
-from ..ibl.distance import DISTANCE_NAME, distance_filename
+from ..ibl.distance import distance_filename
 from ..fileio import write_json_atomic
 
 RATIO_FILE = "shadow_ratio.exr"
@@ -134,6 +134,12 @@ def has_moving_frames(folder: str, frames) -> bool:
     return all(os.path.isfile(os.path.join(moving, name)) for f in frames for name in moving_filenames(f))
 
 
+def _is_frame_file(name: str) -> bool:
+    """Is ``name`` one of a per-frame bake's files (moving_filenames of the frame it is numbered)?"""
+    number = re.search(r"_(\d+)\.exr$", name)
+    return number is not None and name in moving_filenames(int(number.group(1)))
+
+
 def remove_moving_frames(folder: str, keep=()) -> list[str]:
     """Delete the per-frame bake's files of frames not in ``keep`` (a shorter shot, or the moving
     CG's shadows now left to the catcher), so no old frame is ever read. Returns the files removed."""
@@ -141,9 +147,7 @@ def remove_moving_frames(folder: str, keep=()) -> list[str]:
     if not os.path.isdir(moving):
         return []
     wanted = {name for f in keep for name in moving_filenames(f)}
-    frame_file = re.compile(r"^(?:%s|%s)_\d{4,}\.exr$" % (re.escape(os.path.splitext(RATIO_FILE)[0]),
-                                                         re.escape(DISTANCE_NAME)))
-    removed = sorted(n for n in os.listdir(moving) if frame_file.match(n) and n not in wanted)
+    removed = sorted(n for n in os.listdir(moving) if _is_frame_file(n) and n not in wanted)
     for name in removed:
         os.unlink(os.path.join(moving, name))
     return removed
