@@ -34,6 +34,16 @@ def box(bpy, scene, name, location, modifiers=()):
     return ob
 
 
+def bulge(ob):
+    """A shape key that pulls one corner of the box out over the shot."""
+    ob.shape_key_add(name="Basis")
+    key = ob.shape_key_add(name="Bulge")
+    key.data[7].co = (2, 2, 2)
+    for frame, value in zip(FRAMES, (0.0, 1.0)):
+        key.value = value
+        key.keyframe_insert("value", frame=frame)
+
+
 def test_every_kind_of_motion_is_found_and_still_objects_are_not(bpy_clean):
     from platelight.operators import motion
 
@@ -70,13 +80,7 @@ def test_every_kind_of_motion_is_found_and_still_objects_are_not(bpy_clean):
         pose.rotation_euler = (angle, 0, 0)
         pose.keyframe_insert("rotation_euler", frame=frame)
 
-    shaped = box(bpy, scene, "Shape Keys", (0, -6, 0))
-    shaped.shape_key_add(name="Basis")
-    key = shaped.shape_key_add(name="Bulge")
-    key.data[7].co = (2, 2, 2)
-    for frame, value in zip(FRAMES, (0.0, 1.0)):
-        key.value = value
-        key.keyframe_insert("value", frame=frame)
+    bulge(box(bpy, scene, "Shape Keys", (0, -6, 0)))
 
     displaced = box(bpy, scene, "Displaced", (0, -9, 0), modifiers=("DISPLACE",))
     for frame, value in zip(FRAMES, (0.0, 0.5)):
@@ -85,12 +89,7 @@ def test_every_kind_of_motion_is_found_and_still_objects_are_not(bpy_clean):
 
     walking = box(bpy, scene, "Walking", (0, -12, 0))        # moves and deforms
     keyed(walking, "location", [(0, -12, 0), (1, -12, 0)])
-    walking.shape_key_add(name="Basis")
-    stride = walking.shape_key_add(name="Stride")
-    stride.data[7].co = (2, 2, 2)
-    for frame, value in zip(FRAMES, (0.0, 1.0)):
-        stride.value = value
-        stride.keyframe_insert("value", frame=frame)
+    bulge(walking)
 
     scene.frame_set(3)
     objects = [ob for ob in scene.objects if ob.type == "MESH"]
