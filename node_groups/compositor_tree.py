@@ -10,6 +10,11 @@ from ..addon.compositing.baked_shadows import CATCHER_ALBEDO
 from .composite import build_differential_group
 from .redistortion import wire_redistortion
 
+# A raw 1 of a shadow pass stays raw (the plate exact) only where the denoised estimate finds less
+# shadow than this: a pixel of a soft shadow's fringe that no sample tied to the CG stays a
+# speckle kept raw (docs/decisions.md, "Denoise only what is noisy")
+SHADOW_KEPT_WITHIN = 0.01
+
 
 def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows,
                           denoise_cg):
@@ -43,8 +48,9 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     cg.layer = names.LAYER_CG
     cg.location = (-600, 0)
 
-    def equal_everywhere(socket_a, socket_b_or_value, location):
-        """A factor that is 1 where all RGB channels of a equal b (a socket or a number)."""
+    def equal_everywhere(socket_a, socket_b_or_value, location, operation="COMPARE"):
+        """A factor that is 1 where all RGB channels of a equal b (a socket or a number), or with
+        ``operation="GREATER_THAN"`` exceed it."""
         x, y = location
         sep_a = nodes.new("CompositorNodeSeparateColor")
         sep_a.location = (x, y)
@@ -56,14 +62,15 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             links.new(socket_b_or_value, sep_b.inputs["Image"])
         result = None
         for k, channel in enumerate(("Red", "Green", "Blue")):
-            cmp = compat.compositor_math(nodes, "COMPARE")
+            cmp = compat.compositor_math(nodes, operation)
             cmp.location = (x + 150, y - 60 * k)
             links.new(sep_a.outputs[channel], cmp.inputs[0])
             if sep_b is not None:
                 links.new(sep_b.outputs[channel], cmp.inputs[1])
             else:
                 cmp.inputs[1].default_value = socket_b_or_value
-            cmp.inputs[2].default_value = 0.0
+            if operation == "COMPARE":
+                cmp.inputs[2].default_value = 0.0
             if result is None:
                 result = cmp.outputs[0]
             else:
@@ -74,9 +81,10 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
                 result = both.outputs[0]
         return result
 
-    def denoised_unless(socket, keep_factor, location, normal=None):
+    def denoised_unless(socket, keep_factor, location, normal=None, kept_within=None):
         """OIDN on ``socket``, except where ``keep_factor`` is 1: there the raw pixel is kept,
-        so denoising never touches pixels the CG does not reach (the plate stays exact).
+        so denoising never touches pixels the CG does not reach (the plate stays exact);
+        ``kept_within``: only where the denoised pixel is within that of 1, too.
         ``normal``: a Denoising Normal pass to guide it, with the constant albedo Cycles' own
         denoiser gives a Shadow Catcher pass (CATCHER_ALBEDO); the guides are
         noise-free first hits, so not prefiltered."""
@@ -95,6 +103,13 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             links.new(albedo.outputs[0], node.inputs["Albedo"])
             links.new(normal, node.inputs["Normal"])
             compat.set_option(node, "Prefilter", "None")
+        if kept_within is not None:
+            near_one = equal_everywhere(node.outputs["Image"], 1.0 - kept_within, (x, y - 300), "GREATER_THAN")
+            both = compat.compositor_math(nodes, "MULTIPLY")
+            both.location = (x + 100, y - 150)
+            links.new(keep_factor, both.inputs[0])
+            links.new(near_one, both.inputs[1])
+            keep_factor = both.outputs[0]
         mix = compat.compositor_mix(nodes)
         mix.node.location = (x + 200, y)
         links.new(keep_factor, mix.factor)
@@ -109,7 +124,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         if denoise_shadows:
             scene.view_layers[source.layer].cycles.denoising_store_passes = True
             catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, y)), (-300, y + 50),
-                                      normal=source.outputs["Denoising Normal"])
+                                      normal=source.outputs["Denoising Normal"], kept_within=SHADOW_KEPT_WITHIN)
         return catcher
 
     cg_image = cg.outputs["Image"]
