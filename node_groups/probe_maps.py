@@ -178,6 +178,12 @@ def missing_maps(folder: str, needed) -> list:
     return [name for name in needed if name not in present]
 
 
+def map_nodes(tree) -> list:
+    """The group's nodes that read one of the probe's maps (each keyed by the map's name)."""
+    return [node for node in tree.nodes
+            if node.bl_idname == "ShaderNodeTexEnvironment" and node.get("platelight_map") is not None]
+
+
 def bind_images(tree):
     """Point the group's Environment Texture nodes at the folder's maps (reloading them); returns
     the group, which a (re)build may have replaced (_build_if_needed)."""
@@ -189,10 +195,8 @@ def bind_images(tree):
     tree = _build_if_needed(tree, _behind_on(path, records))
     sun = _steady_sun(path, records)
     ladder = _ladder_on(path, records, sun)
-    for node in tree.nodes:
-        name = node.get("platelight_map")
-        if node.bl_idname != "ShaderNodeTexEnvironment" or name is None:
-            continue
+    for node in map_nodes(tree):
+        name = node["platelight_map"]
         if kind == "missing":
             filename = None
         elif name == view_lobe.GLOSSY3 or (ladder and SUNLESS_NAMES.get(name) in view_lobe.RUNGS):
@@ -247,7 +251,7 @@ def _scene_setting(name):
 
 
 def _has_baked(tree, map_name):
-    node = next((n for n in tree.nodes if n.get("platelight_map") == map_name), None)
+    node = next((n for n in map_nodes(tree) if n["platelight_map"] == map_name), None)
     return node is not None and is_baked(node.image)
 
 

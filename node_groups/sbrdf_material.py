@@ -60,6 +60,17 @@ def probe_node(material):
     return material.node_tree.nodes.get(names.PROBE_NODE)
 
 
+def probe_groups(objects) -> set:
+    """The probe groups that the SBRDF materials of ``objects`` read their maps from."""
+    groups = set()
+    for ob in objects:
+        for slot in getattr(ob, "material_slots", ()):
+            node = probe_node(slot.material)
+            if node is not None and node.node_tree is not None:
+                groups.add(node.node_tree)
+    return groups
+
+
 def read_params(material) -> SBRDFParams:
     node = sbrdf_node(material)
     values = {}

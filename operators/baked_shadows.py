@@ -30,7 +30,7 @@ from ..addon.ibl import distance as distance_maps
 from ..node_groups.baked_shadow import baked_shadow_material
 from .bake import pass_denoise
 from .bake.inputs import Describer, point_inside, world_corners, world_description
-from .bake.probe_render import ProbeRenderer, render_key
+from .bake.probe_render import ProbeRenderer, detach_unseen_maps, render_key
 from .bake.scene_state import SceneState
 from . import motion
 from .common import GEOMETRY_TYPES, classify_objects
@@ -320,6 +320,9 @@ def bake_shadows(context, height: int | None = None, samples: int | None = None,
             if other != layer and other.use:
                 state.set(other, "use", False)
         state.set(scene.cycles, "diffuse_bounces", bake_diffuse_bounces(scene.cycles))
+        # every render hides the CG from camera rays: no SBRDF map of it is seen
+        cg_names = {ob.name for ob in cg}
+        detach_unseen_maps(state, cg, [ob for ob in scene.objects if ob.name not in cg_names])
         # Phantoms are rendered matte, one albedo each: it cancels in the ratio but for the
         # light the CG sends back; a textured one (the plate's albedo map) made the two denoised
         # renders differ by up to 5 % far from any shadow (the denoiser sees the whole panorama)

@@ -31,7 +31,7 @@ from ..common import GEOMETRY_TYPES, addon_preferences, classify_objects
 from .inputs import (Describer, maps_for, owner_visibility, point_inside, probe_origin, wants_behind_layer,
                      renderable, visible_in_probe, wants_sharp_probe, world_bounds, world_description)
 from .distance_render import distance_height, surface_points, write_probe_distance
-from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer
+from .probe_render import PROBE_WORLD_MAP_RESOLUTION, ProbeRenderer, detach_unseen_maps
 from .records import pack_maps, probe_hash, world_maps_hash
 from .scene_state import SceneState
 from ..world_environment import probe_image
@@ -284,6 +284,11 @@ class ProbeBake:
         self._frame0 = self.scene.frame_current
         self._world_pending = bool(self.world_only)
         self._pending = list(self._queue)
+        owners = {ob.name: ob for _, ob in self._queue}
+        if len(owners) == 1 and not self.check_only:
+            # No probe camera sees its owner (in every owner mode): one object's maps are unseen
+            others = [o for o in self.scene.objects if o.name not in owners and renderable(o, self.view_layer)]
+            detach_unseen_maps(self._state, owners.values(), others)
 
     def _warn_of_motion(self):
         """A single-frame probe holds the scene as it is now: say so where something in it moves."""

@@ -14,6 +14,8 @@ import numpy as np
 from ... import compat
 from ...addon import names
 from ...node_groups.distance_material import remove_distance_material
+from ...node_groups.probe_maps import map_nodes, unbaked_map
+from ...node_groups.sbrdf_material import probe_groups
 from ...addon.bake.probe_size import samples_for
 from ...addon.errors import PlateLightError
 from ...addon.exr_io import read_exr
@@ -55,6 +57,21 @@ def render_key(cycles, diffuse_bounces=None) -> list:
     (``diffuse_bounces`` where the bake caps them) and the bake's own Filter Glossy."""
     diffuse = cycles.diffuse_bounces if diffuse_bounces is None else diffuse_bounces
     return [cycles.max_bounces, diffuse, cycles.glossy_bounces, cycles.transmission_bounces, BAKE_FILTER_GLOSSY]
+
+
+def detach_unseen_maps(state, unseen, seen):
+    """Point the SBRDF probe maps of the ``unseen`` objects at the black stand-in until ``state``
+    is restored, but for maps a ``seen`` object's material reads too. Only camera rays read an
+    SBRDF's maps (every other ray sees its Principled twin), so maps no render's camera sees
+    change none of its pixels; bound as image sequences, Cycles reloaded them at every frame of a
+    frame-range bake, which made a re-bake's panoramas about 5x slower (0.3 s to 1.7 s at 128x64)."""
+    groups = probe_groups(unseen) - probe_groups(seen)
+    stand_in = unbaked_map() if groups else None
+    for tree in groups:
+        for node in map_nodes(tree):
+            if node.image is not stand_in:
+                state.set(node, "image", stand_in)
+    return groups
 
 
 class ProbeRenderer:

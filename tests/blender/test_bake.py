@@ -136,6 +136,63 @@ def test_frame_range_writes_per_frame_maps_of_a_moving_object(bpy_clean, tmp_pat
     assert owner.platelight.probe_status.startswith("baked (frames 1-3)")
 
 
+def test_a_rebake_renders_without_the_maps_no_probe_camera_sees(bpy_clean, tmp_path, monkeypatch):
+    """A frame-range re-bake of one object: its own maps, bound as image sequences since the first
+    bake, are unseen by its probe camera (the owner is hidden from camera rays), so they are held
+    at the black stand-in during the renders (Cycles reloaded them at every frame) and bound again
+    after; a neighbour's maps, which the probe sees, stay. The maps are those of a re-bake that
+    keeps them all bound, to the bit."""
+    from platelight.addon.names import PROBE_GROUP_PREFIX, UNBAKED_MAP
+    from platelight.node_groups.probe_maps import map_nodes
+
+    bpy = bpy_clean
+    new_scene(bpy, tmp_path, world_color=(0.2, 0.3, 0.4))
+    add_plane(bpy, "Floor", (0, 0, -0.5), color=(0.8, 0.1, 0.1), phantom=True)
+    neighbour = add_sphere(bpy, "Neighbour", (1.5, 0, 0))
+    owner = add_sphere(bpy, "Owner", (0, 0, 0))
+    for frame, x in ((1, -0.5), (3, 0.5)):
+        owner.location = (x, 0, 0)
+        owner.keyframe_insert("location", frame=frame)
+    for ob in (neighbour, owner):
+        bpy.context.view_layer.objects.active = ob
+        assert bpy.ops.platelight.apply_sbrdf(preset="NONE") == {"FINISHED"}
+    bake(bpy, all_objects=True, frame_start=1, frame_end=3, cull=False)
+
+    groups = {name: bpy.data.node_groups[PROBE_GROUP_PREFIX + name] for name in ("Owner", "Neighbour")}
+    bound = {node.name: node.image.name for node in map_nodes(groups["Owner"])}
+    assert UNBAKED_MAP not in bound.values()
+    for ob in bpy.context.selected_objects:
+        ob.select_set(False)
+    owner.select_set(True)
+    bpy.context.view_layer.objects.active = owner
+
+    def rebake():
+        seen = []
+
+        def note_images(*_):
+            seen.append({name: {node.image.name for node in map_nodes(tree)} for name, tree in groups.items()})
+
+        bpy.app.handlers.render_pre.append(note_images)
+        try:
+            bake(bpy, frame_start=1, frame_end=3, cull=False, force=True)
+        finally:
+            bpy.app.handlers.render_pre.remove(note_images)
+        assert len(seen) >= 3
+        return seen, [read_map(tmp_path, "Owner", "specular", frame=f) for f in (1, 2, 3)]
+
+    seen, detached = rebake()
+    for images in seen:
+        assert images["Owner"] == {UNBAKED_MAP}
+        assert UNBAKED_MAP not in images["Neighbour"]
+    assert {node.name: node.image.name for node in map_nodes(groups["Owner"])} == bound
+
+    monkeypatch.setattr(bake_module("job"), "detach_unseen_maps", lambda *_: set())
+    seen, kept_bound = rebake()
+    assert all(UNBAKED_MAP not in images["Owner"] for images in seen)
+    for a, b in zip(detached, kept_bound):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_a_slowly_moving_object_reuses_its_probe_until_it_has_moved_a_quarter_of_its_size(bpy_clean, tmp_path):
     """Probe Reuse: over a frame range a probe is rendered again only once its object has moved
     more than Probe Reuse bounding radii since the last one; a frame between takes that probe whole,

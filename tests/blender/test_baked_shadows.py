@@ -347,6 +347,45 @@ def test_a_catcher_bake_below_four_samples_warns(bpy_clean, tmp_path):
     assert not [w for w in summary["warnings"] if "grainy" in w]
 
 
+def test_a_shadow_bake_renders_with_the_cg_s_probe_maps_set_aside(bpy_clean, tmp_path):
+    """No camera ray of a shadow bake sees the CG, so its SBRDF's maps (image sequences after a
+    frame-range probe bake, which Cycles reloaded at every frame) are held at the black stand-in
+    while it renders, and bound again after."""
+    from platelight.addon.names import UNBAKED_MAP
+    from platelight.node_groups.probe_maps import map_nodes
+
+    bpy = bpy_clean
+    sm = importlib.import_module(f"{support.EXT_MODULE}.node_groups.sbrdf_material")
+    scene, _floor, ball = floating_black_ball(bpy, tmp_path)
+    ball.platelight.enabled = True
+    scene.platelight.probe_height = 16
+    scene.frame_start, scene.frame_end = 1, 3
+    for frame, x in ((1, 0.0), (3, 1.0)):
+        ball.location.x = x
+        ball.keyframe_insert("location", frame=frame)
+    scene.frame_set(1)
+    material = sm.apply_sbrdf_material(ball)
+    assert bpy.ops.platelight.bake_probes(all_objects=True, frame_start=1, frame_end=3, cull=False) == {"FINISHED"}
+    group = sm.probe_node(material).node_tree
+    bound = {node.name: node.image.name for node in map_nodes(group)}
+    assert set(bound.values()) != {UNBAKED_MAP}
+    seen, filming_camera = [], scene.camera
+
+    def note_images(*_):
+        if scene.camera is not filming_camera:       # the bake's panoramas, not the phantoms' white render
+            seen.append({node.image.name for node in map_nodes(group)})
+
+    assert bpy.ops.platelight.setup_plate(filepath=str(tmp_path / "plate.exr")) == {"FINISHED"}
+    bpy.app.handlers.render_pre.append(note_images)
+    try:
+        assert bpy.ops.platelight.bake_shadows(height=32, samples=2, moving_shadows="PER_FRAME",
+                                               moving_height=32) == {"FINISHED"}
+    finally:
+        bpy.app.handlers.render_pre.remove(note_images)
+    assert len(seen) >= 3 and all(images == {UNBAKED_MAP} for images in seen), seen
+    assert {node.name: node.image.name for node in map_nodes(group)} == bound
+
+
 def test_what_the_camera_sees_of_a_metal_leaves_the_bake_current(bpy_clean, tmp_path, capfd):
     """The bake hides the CG from its camera, so setup_composite's Metals switch (the camera sees a
     metal's SBRDF or its path-traced twin) cannot change the ratio: the bake stays current and the
