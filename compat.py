@@ -157,6 +157,20 @@ def compositor_math(nodes, operation):
     return node
 
 
+def compositor_erode(nodes, pixels):
+    """A Dilate/Erode node in Step mode that shrinks its Mask input's 1s by ``pixels`` (input
+    "Mask", output "Mask"): 1 where every pixel within that reach is 1. 4.5 keeps the size in its
+    ``distance`` property as well as the Size socket of 5.x; both are set."""
+    node = nodes.new("CompositorNodeDilateErode")
+    if BLENDER_4:
+        node.mode = "STEP"
+        node.distance = -pixels
+    else:
+        node.inputs["Type"].default_value = "Steps"
+    node.inputs["Size"].default_value = -pixels
+    return node
+
+
 # On 4.5 these menu sockets of 5.x are properties of the node; values are the menu item names.
 _OPTION_PROPERTIES = {
     ("CompositorNodeGlare", "Type"): "glare_type",

@@ -14,6 +14,8 @@ from .redistortion import wire_redistortion
 # shadow than this: a pixel of a soft shadow's fringe that no sample tied to the CG stays a
 # speckle kept raw (docs/decisions.md, "Denoise only what is noisy")
 SHADOW_KEPT_WITHIN = 0.01
+# ... and wherever no raw pixel within this many pixels differs from 1
+SHADOW_CHANGE_REACH = 4
 
 
 def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, denoise_shadows,
@@ -84,7 +86,8 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     def denoised_unless(socket, keep_factor, location, normal=None, kept_within=None):
         """OIDN on ``socket``, except where ``keep_factor`` is 1: there the raw pixel is kept,
         so denoising never touches pixels the CG does not reach (the plate stays exact);
-        ``kept_within``: only where the denoised pixel is within that of 1, too.
+        ``kept_within``: only where the denoised pixel is within that of 1, too, or where no raw
+        pixel within SHADOW_CHANGE_REACH differs from 1.
         ``normal``: a Denoising Normal pass to guide it, with the constant albedo Cycles' own
         denoiser gives a Shadow Catcher pass (CATCHER_ALBEDO); the guides are
         noise-free first hits, so not prefiltered."""
@@ -104,11 +107,20 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             links.new(normal, node.inputs["Normal"])
             compat.set_option(node, "Prefilter", "None")
         if kept_within is not None:
-            near_one = equal_everywhere(node.outputs["Image"], 1.0 - kept_within, (x, y - 300), "GREATER_THAN")
+            trusted = equal_everywhere(node.outputs["Image"], 1.0 - kept_within, (x, y - 300), "GREATER_THAN")
+            # ... or no raw pixel within reach differs from 1: no shadow can be there (OIDN strayed
+            # by up to 0.2 near the frame's border, far from any shadow)
+            unchanged = compat.compositor_erode(nodes, SHADOW_CHANGE_REACH)
+            unchanged.location = (x, y - 500)
+            links.new(keep_factor, unchanged.inputs["Mask"])
+            either = compat.compositor_math(nodes, "MAXIMUM")
+            either.location = (x + 100, y - 400)
+            links.new(trusted, either.inputs[0])
+            links.new(unchanged.outputs["Mask"], either.inputs[1])
             both = compat.compositor_math(nodes, "MULTIPLY")
             both.location = (x + 100, y - 150)
             links.new(keep_factor, both.inputs[0])
-            links.new(near_one, both.inputs[1])
+            links.new(either.outputs[0], both.inputs[1])
             keep_factor = both.outputs[0]
         mix = compat.compositor_mix(nodes)
         mix.node.location = (x + 200, y)
