@@ -101,7 +101,7 @@ def motions(scene, objects, frames=None, kinds=KINDS) -> dict[str, Motion]:
                         found[ob.name] = Motion(ob.name, "moves", int(frame))
                         continue
                 if ob in shaped:
-                    depsgraph = depsgraph or _depsgraph(scene)
+                    depsgraph = depsgraph or scene_depsgraph(scene)
                     vertices = _vertices(ob, depsgraph)
                     if ob.name not in first_shape:
                         first_shape[ob.name] = vertices
@@ -112,7 +112,7 @@ def motions(scene, objects, frames=None, kinds=KINDS) -> dict[str, Motion]:
     return found
 
 
-def _depsgraph(scene):
+def scene_depsgraph(scene):
     """The scene's evaluated dependency graph, as the render will see it."""
     if bpy.context.scene == scene:
         return bpy.context.evaluated_depsgraph_get()

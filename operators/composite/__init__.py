@@ -31,12 +31,12 @@ from ...addon import names
 from ...addon.errors import PlateLightError
 from ..common import report_error
 from .routes import ROUTES, Route, choose_route
-from .setup import (ADAPTIVE_MIN_SAMPLES, BAKED_SHADOW_SAMPLES, CAMERA_SHADINGS, DEFAULT_DEFORMING_SHADING,
+from .setup import (ADAPTIVE_MIN_SAMPLES, BAKED_SHADOW_SAMPLES, CAMERA_SHADINGS, DEFAULT_SELF_SHADOWING_SHADING,
                     DEFAULT_METAL_SHADING, FILMED_CLAMP_DIRECT, PATH_TRACED_CG_SAMPLES, SMOOTH_CG_SAMPLES, set_camera_shading, setup_composite,
                     smooth_without_denoiser)
 from .layers import configure_eevee
 
-__all__ = ("ADAPTIVE_MIN_SAMPLES", "BAKED_SHADOW_SAMPLES", "CAMERA_SHADINGS", "DEFAULT_DEFORMING_SHADING",
+__all__ = ("ADAPTIVE_MIN_SAMPLES", "BAKED_SHADOW_SAMPLES", "CAMERA_SHADINGS", "DEFAULT_SELF_SHADOWING_SHADING",
            "DEFAULT_METAL_SHADING", "FILMED_CLAMP_DIRECT",
            "PATH_TRACED_CG_SAMPLES", "PLATELIGHT_OT_setup_composite", "ROUTES", "Route",
            "SMOOTH_CG_SAMPLES", "choose_route", "classes", "configure_eevee", "set_camera_shading",
@@ -123,13 +123,14 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
         items=CAMERA_SHADINGS,
         default=DEFAULT_METAL_SHADING,
     )
-    deforming: EnumProperty(
-        name="Deforming CG",
-        description="What the camera sees in Cycles of an SBRDF object whose shape changes over the "
-        "shot (an armature, shape keys, animated modifiers): the SBRDF does not shadow itself, so a "
-        "bending limb stays lit where it folds (EEVEE always shows the SBRDF)",
+    self_shadowing: EnumProperty(
+        name="Self-Shadowing CG",
+        description="What the camera sees in Cycles of an SBRDF object that shadows itself: one whose "
+        "shape changes over the shot (an armature, shape keys, animated modifiers) or whose surface "
+        "hides part of its own sky (a hollow, a fold). The SBRDF does not shadow itself, so a bending "
+        "limb stays lit where it folds (EEVEE always shows the SBRDF)",
         items=CAMERA_SHADINGS,
-        default=DEFAULT_DEFORMING_SHADING,
+        default=DEFAULT_SELF_SHADOWING_SHADING,
     )
 
     @classmethod
@@ -147,7 +148,7 @@ class PLATELIGHT_OT_setup_composite(bpy.types.Operator):
                 scene, method=self.method, engine=self.engine, cg_samples=self.cg_samples,
                 ratio_form=self.ratio_form, shadow_clamp=self.shadow_clamp,
                 denoise_shadows=self.denoise_shadows, baked_samples=self.baked_samples,
-                samples=self.samples, metals=self.metals, deforming=self.deforming)
+                samples=self.samples, metals=self.metals, self_shadowing=self.self_shadowing)
         except PlateLightError as err:
             report_error(self, err)
             return {"CANCELLED"}

@@ -17,6 +17,7 @@ from ..baked_shadows import baked_is_current, moving_baked
 from ..common import classify_objects, find_plate_image, set_plate_colour_management
 from ...node_groups.baked_shadow import ensure_ratio_aov
 from ..phantoms import apply_phantom_surfaces
+from .self_occlusion import self_shadowing
 from .layers import collection, configure_eevee, configure_layer, move_into, unlink_if_empty, view_layer
 from .routes import BAKED_SHADOWS, CATCHER_SHADOWS, NO_SHADOWS_LAYER, choose_route
 
@@ -35,20 +36,36 @@ CAMERA_SHADINGS = (("PATH_TRACED", "Path-Traced", "The Principled material the S
 # Path-traced, a metal converges sooner (docs/decisions.md, "Metals path-traced, the SBRDF for the rest")
 DEFAULT_METAL_SHADING = "PATH_TRACED"
 # The SBRDF shades from one probe and does not shadow itself: a column bent by its armature kept
-# the face under the bend lit (docs/decisions.md, "A deforming CG path-traced")
-DEFAULT_DEFORMING_SHADING = "PATH_TRACED"
+# the face under the bend lit, Suzanne its eyes (docs/decisions.md, "A CG that shadows itself path-traced")
+DEFAULT_SELF_SHADOWING_SHADING = "PATH_TRACED"
 
 
-def set_camera_shading(objects, engine, metals, deforming=DEFAULT_DEFORMING_SHADING, deformed=()):
+def set_camera_shading(objects, engine, metals, self_shadowing=DEFAULT_SELF_SHADOWING_SHADING, shadowing=()):
     """Give the camera each SBRDF material's SBRDF, or its path-traced twin where ``metals`` asks
-    for that of a metal in Cycles, or ``deforming`` for that of an object in ``deformed`` (names)."""
-    twinned = {slot.material for ob in objects if ob.name in deformed for slot in ob.material_slots} \
-        if deforming == "PATH_TRACED" else set()
+    for that of a metal in Cycles, or ``self_shadowing`` for that of an object in ``shadowing``
+    (names)."""
+    twinned = {slot.material for ob in objects if ob.name in shadowing for slot in ob.material_slots} \
+        if self_shadowing == "PATH_TRACED" else set()
     for material in {slot.material for ob in objects for slot in ob.material_slots}:
         if sbrdf_node(material) is not None and ray_twin.has_ray_split(material):
             twin = engine == "CYCLES" and ((metals == "PATH_TRACED" and is_metal(material))
                                            or material in twinned)
             ray_twin.set_camera_sees_sbrdf(material, not twin)
+
+
+def shadowing_itself(scene, cg, metals) -> dict:
+    """{name: why} of the CG objects an SBRDF would shade (not a metal the camera already sees
+    path-traced) that shadow themselves: those that deform over the shot, whose shape may fold, and
+    those whose surface hides part of its own sky (addon/material/self_occlusion.py)."""
+    def sbrdf_shaded(material):
+        return sbrdf_node(material) is not None and not (metals == "PATH_TRACED" and is_metal(material))
+
+    candidates = [ob for ob in cg if any(sbrdf_shaded(slot.material) for slot in ob.material_slots)]
+    found = {name: "deforms" for name in motion.motions(scene, candidates, kinds=("deforms",))}
+    rigid = [ob for ob in candidates if ob.name not in found]
+    for name, fraction in self_shadowing(rigid, motion.scene_depsgraph(scene)).items():
+        found[name] = f"hides {100 * fraction:.1f} % of its own sky"
+    return found
 
 
 # A noise-free SBRDF needs only its edges anti-aliased, a path-traced object must converge (docs/decisions.md)
@@ -64,7 +81,7 @@ FILMED_CLAMP_DIRECT = 100.0
 
 def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_form=True,
                     shadow_clamp=4.0, denoise_shadows=True, baked_samples=BAKED_SHADOW_SAMPLES, samples=0,
-                    metals=DEFAULT_METAL_SHADING, deforming=DEFAULT_DEFORMING_SHADING):
+                    metals=DEFAULT_METAL_SHADING, self_shadowing=DEFAULT_SELF_SHADOWING_SHADING):
     """Composite ``scene``'s CG objects onto its plate by ``method`` (AUTO or a route of routes.py)
     in ``engine``; the options are platelight.setup_composite's. Returns the report's lines,
     (level, sentence) with level INFO or WARNING; raises PlateLightError before changing anything."""
@@ -174,10 +191,10 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
             scene.view_layers[name].use = False
     if engine == compat.EEVEE and route.local_scene:
         configure_eevee(scene)
-    # a material shared with a deforming object is path-traced on every object that wears it
-    deformed = frozenset(motion.motions(scene, cg, kinds=("deforms",))) \
-        if engine == "CYCLES" and deforming == "PATH_TRACED" else frozenset()
-    set_camera_shading(cg, engine, metals, deforming, deformed)
+    # a material shared with an object that shadows itself is path-traced on every object that wears it
+    shadowing = shadowing_itself(scene, cg, metals) \
+        if engine == "CYCLES" and self_shadowing == "PATH_TRACED" else {}
+    set_camera_shading(cg, engine, metals, self_shadowing, shadowing)
     noisy = [ob for ob in cg if not smooth_without_denoiser(ob)]   # path-traced, or a sharp SBRDF
     # EEVEE's samples anti-alias a noise-free image: its SBRDF needs no more than the edges do
     converging = bool(noisy) and engine == "CYCLES"
@@ -202,9 +219,9 @@ def setup_composite(scene, method="AUTO", engine="CYCLES", cg_samples=0, ratio_f
         layer = f", the CG at {layer_samples} samples" if route.cg_samples else ""
         if moving_cg:
             layer += f"; the shadows of {len(moving_cg)} moving CG object(s) rendered every frame"
-        if deformed:
-            layer += ("; path-traced as they deform (the SBRDF does not shadow itself): "
-                      + ", ".join(sorted(repr(name) for name in deformed)))
+        if shadowing:
+            layer += ("; path-traced where they shadow themselves (the SBRDF does not): "
+                      + ", ".join(f"{name!r} ({why})" for name, why in sorted(shadowing.items())))
         reports.append(("INFO", f"Composite set up ({route.name.lower()}, {engine.lower()}): "
                         f"{len(cg)} CG object(s) ({len(noisy)} path-traced or with a sharp "
                         f"reflection{layer}), {len(phantoms)} phantom(s), plate '{plate_image.name}'{clamped}."))

@@ -100,8 +100,8 @@ ROUTES = {
     "paper": ("platelight (paper's model)", "paper", (16,)),
     # a moving CG's probe reused while it moves less than a quarter of its bounding radius
     "probe_reuse": ("platelight, Probe Reuse 0.25", "platelight", (4,)),
-    # a deforming CG shaded by its SBRDF, as the paper does, where the default path-traces it
-    "sbrdf_deforming": ("platelight, a deforming CG's SBRDF", "platelight", (4,)),
+    # a CG that shadows itself shaded by its SBRDF, as the paper does, where the default path-traces it
+    "sbrdf_self_shadowing": ("platelight, the paper's SBRDF on a CG that shadows itself", "platelight", (4,)),
     # a moving CG's shadows baked at every frame, at 256 rows and at the still bake's 512
     "moving_256": ("platelight, moving shadows baked per frame at 256 rows", "platelight", (4,)),
     "moving_512": ("platelight, moving shadows at 512 rows", "platelight", (4,)),
@@ -463,8 +463,8 @@ def run_route(bpy, key, spec, data, samples, out_dir):
         return run_platelight(bpy, spec, data, samples, out_dir, paper=True)
     if key == "probe_reuse":
         return run_platelight(bpy, spec, data, samples, out_dir, probe_reuse=0.25)
-    if key == "sbrdf_deforming":
-        return run_platelight(bpy, spec, data, samples, out_dir, composite={"deforming": "SBRDF"})
+    if key == "sbrdf_self_shadowing":
+        return run_platelight(bpy, spec, data, samples, out_dir, composite={"self_shadowing": "SBRDF"})
     if key in ("moving_256", "moving_512"):
         return run_platelight(bpy, spec, data, samples, out_dir,
                               shadow_bake={"moving_shadows": "PER_FRAME", "moving_height": int(key[7:])})
