@@ -17,7 +17,7 @@ PYTEST_ARGS ?=
 # The suite runs in this many processes (pytest-xdist); each test has its own profile and folder.
 TEST_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
-.PHONY: venv test test-fast demo bench bench-960 bench-1080 bench-gpu bench-shot bench-motion bench-shot-gpu dist validate clean
+.PHONY: venv test test-fast demo bench bench-960 bench-1080 bench-gpu bench-shot bench-motion bench-shapes bench-shot-gpu dist validate clean
 
 venv: $(STAMP)
 
@@ -64,6 +64,14 @@ bench-shot: venv
 
 bench-motion: venv
 	PLATELIGHT_BENCH_NAME=motion PLATELIGHT_BENCH_SIZE=$${PLATELIGHT_BENCH_SIZE:-960x540} $(PY) tests/bench/bench_shot.py
+
+# the shapes a probe at the centre cannot shade: a turning Suzanne, a bending column, and the
+# convex rolling sphere (docs/bench/motion_shapes_320x180.md; about an hour on 2 cores)
+bench-shapes: venv
+	PLATELIGHT_BENCH_SCENES='turning Suzanne, hard sun, photo floor, textured;bending column, city, grey floor, diffuse;rolling, hard sun, photo floor, diffuse' \
+	PLATELIGHT_BENCH_NAME=motion_shapes PLATELIGHT_BENCH_SIZE=$${PLATELIGHT_BENCH_SIZE:-320x180} PLATELIGHT_BENCH_TRUTH_HALF_SPP=512 \
+	PLATELIGHT_BENCH_CATCHER_SPP=4,16,64 PLATELIGHT_BENCH_CG_SPP=4,16 PLATELIGHT_BENCH_ROUTES=platelight,sbrdf_self_shadowing,catcher \
+	$(PY) tests/bench/bench_shot.py
 
 bench-shot-gpu: venv
 	PLATELIGHT_BENCH_DEVICE=GPU PLATELIGHT_BENCH_SIZE=$${PLATELIGHT_BENCH_SIZE:-960x540} $(PY) tests/bench/bench_shot.py
