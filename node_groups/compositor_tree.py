@@ -50,9 +50,9 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
     cg.layer = names.LAYER_CG
     cg.location = (-600, 0)
 
-    def equal_everywhere(socket_a, socket_b_or_value, location, operation="COMPARE"):
-        """A factor that is 1 where all RGB channels of a equal b (a socket or a number), or with
-        ``operation="GREATER_THAN"`` exceed it."""
+    def on_every_channel(socket_a, socket_b_or_value, location, operation="COMPARE"):
+        """A factor that is 1 where every RGB channel of a equals b (a socket or a number), or
+        with ``operation="GREATER_THAN"`` exceeds it."""
         x, y = location
         sep_a = nodes.new("CompositorNodeSeparateColor")
         sep_a.location = (x, y)
@@ -107,7 +107,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
             links.new(normal, node.inputs["Normal"])
             compat.set_option(node, "Prefilter", "None")
         if kept_within is not None:
-            trusted = equal_everywhere(node.outputs["Image"], 1.0 - kept_within, (x, y - 300), "GREATER_THAN")
+            trusted = on_every_channel(node.outputs["Image"], 1.0 - kept_within, (x, y - 300), "GREATER_THAN")
             # ... or no raw pixel within reach differs from 1: no shadow can be there (OIDN strayed
             # by up to 0.2 near the frame's border, far from any shadow)
             unchanged = compat.compositor_erode(nodes, SHADOW_CHANGE_REACH)
@@ -135,7 +135,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         catcher = source.outputs["Shadow Catcher"]
         if denoise_shadows:
             scene.view_layers[source.layer].cycles.denoising_store_passes = True
-            catcher = denoised_unless(catcher, equal_everywhere(catcher, 1.0, (-900, y)), (-300, y + 50),
+            catcher = denoised_unless(catcher, on_every_channel(catcher, 1.0, (-900, y)), (-300, y + 50),
                                       normal=source.outputs["Denoising Normal"], kept_within=SHADOW_KEPT_WITHIN)
         return catcher
 
@@ -180,7 +180,7 @@ def build_compositor_tree(scene, plate_image, method, ratio_form, shadow_clamp, 
         for name, socket, y in ((names.LAYER_LOCAL, "With", -300), (names.LAYER_WITHOUT, "Without", -600)):
             local[socket] = _render_layer(nodes, scene, name, (-600, y)).outputs["Image"]
         if denoise_shadows:
-            same = equal_everywhere(local["With"], local["Without"], (-900, -450))
+            same = on_every_channel(local["With"], local["Without"], (-900, -450))
             local = {k: denoised_unless(v, same, (-300, -300 if k == "With" else -600)) for k, v in local.items()}
         for socket, value in local.items():
             links.new(value, diff.inputs[socket])

@@ -71,7 +71,6 @@ def detach_unseen_maps(state, unseen, seen):
         for node in map_nodes(tree):
             if node.image is not stand_in:
                 state.set(node, "image", stand_in)
-    return groups
 
 
 class ProbeRenderer:
